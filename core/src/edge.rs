@@ -1,0 +1,97 @@
+//! Edge (factor) traits: an error function of one or two variables, with
+//! numeric Jacobians by default and analytic ones where a type provides them.
+
+use crate::variable::Variable;
+use nalgebra::{SMatrix, SVector};
+
+/// Step of the central differences used for numeric Jacobians.
+pub const NUMERIC_STEP: f64 = 1e-6;
+
+/// An edge on one variable (a prior).
+///
+/// The information matrix is not part of the edge: the graph stores it beside
+/// the edge (as g2o's `BaseEdge` does), so it can be checked and repaired.
+pub trait UnaryEdge<const E: usize, const D: usize>: Clone + Send + Sync + 'static {
+    /// The variable type.
+    type V: Variable<D>;
+    /// Name for messages.
+    const NAME: &'static str;
+
+    /// The error vector e(x).
+    fn error(&self, x: &Self::V) -> SVector<f64, E>;
+
+    /// ∂e/∂δ at δ = 0, where x ⊞ δ is the variable's update.
+    fn jacobian(&self, x: &Self::V) -> SMatrix<f64, E, D> {
+        numeric_unary(self, x)
+    }
+}
+
+/// An edge between two variables.
+pub trait BinaryEdge<const E: usize, const D1: usize, const D2: usize>: Clone + Send + Sync + 'static {
+    /// The first variable's type.
+    type V1: Variable<D1>;
+    /// The second variable's type.
+    type V2: Variable<D2>;
+    /// Name for messages.
+    const NAME: &'static str;
+
+    /// The error vector e(x1, x2).
+    fn error(&self, x1: &Self::V1, x2: &Self::V2) -> SVector<f64, E>;
+
+    /// (∂e/∂δ1, ∂e/∂δ2) at δ = 0. Numeric central differences unless overridden.
+    fn jacobians(&self, x1: &Self::V1, x2: &Self::V2) -> (SMatrix<f64, E, D1>, SMatrix<f64, E, D2>) {
+        numeric_binary(self, x1, x2)
+    }
+
+    /// The second variable predicted from the first and the measurement, used by
+    /// spanning-tree initialisation (g2o `initialEstimate`). `None` if unknown.
+    fn predict_second(&self, _x1: &Self::V1) -> Option<Self::V2> {
+        None
+    }
+
+    /// The first variable predicted from the second, if the edge can invert.
+    fn predict_first(&self, _x2: &Self::V2) -> Option<Self::V1> {
+        None
+    }
+}
+
+/// Central-difference Jacobian of a function of one variable.
+pub fn numeric_jacobian<V, const E: usize, const D: usize>(
+    x: &V,
+    f: impl Fn(&V) -> SVector<f64, E>,
+) -> SMatrix<f64, E, D>
+where
+    V: Variable<D>,
+{
+    let mut j = SMatrix::<f64, E, D>::zeros();
+    let scale = 0.5 / NUMERIC_STEP;
+    for k in 0..D {
+        let mut d = SVector::<f64, D>::zeros();
+        d[k] = NUMERIC_STEP;
+        let plus = f(&x.oplus(&d));
+        d[k] = -NUMERIC_STEP;
+        let minus = f(&x.oplus(&d));
+        j.set_column(k, &((plus - minus) * scale));
+    }
+    j
+}
+
+/// Numeric Jacobian of a unary edge.
+pub fn numeric_unary<T, const E: usize, const D: usize>(edge: &T, x: &T::V) -> SMatrix<f64, E, D>
+where
+    T: UnaryEdge<E, D> + ?Sized,
+{
+    numeric_jacobian(x, |v| edge.error(v))
+}
+
+/// Numeric Jacobians of a binary edge.
+pub fn numeric_binary<T, const E: usize, const D1: usize, const D2: usize>(
+    edge: &T,
+    x1: &T::V1,
+    x2: &T::V2,
+) -> (SMatrix<f64, E, D1>, SMatrix<f64, E, D2>)
+where
+    T: BinaryEdge<E, D1, D2> + ?Sized,
+{
+    (numeric_jacobian(x1, |v| edge.error(v, x2)), numeric_jacobian(x2, |v| edge.error(x1, v)))
+}

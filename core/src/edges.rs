@@ -1,0 +1,196 @@
+//! The g2o edge types: EDGE_SE2, EDGE_SE2_XY, EDGE_PRIOR_SE2 and EDGE_SE3:QUAT,
+//! with g2o's error definitions and analytic Jacobians.
+
+use crate::edge::{BinaryEdge, UnaryEdge};
+use crate::se2::SE2;
+use crate::se3::{SE3, canonical, skew};
+use nalgebra::{Matrix2, Matrix3, Matrix6, SMatrix, Vector2, Vector3, Vector6};
+
+/// ∂Rᵀ(θ)/∂θ.
+fn d_rotation_transpose(theta: f64) -> Matrix2<f64> {
+    let (s, c) = theta.sin_cos();
+    Matrix2::new(-s, c, -c, -s)
+}
+
+/// Odometry or loop closure between two SE2 poses (g2o `EDGE_SE2`):
+/// e = t2v(Z⁻¹ · (Xᵢ⁻¹ · Xⱼ)), angle wrapped to (−π, π].
+#[derive(Clone, Debug, PartialEq)]
+pub struct EdgeSE2 {
+    measurement: SE2,
+    inverse: SE2,
+}
+
+impl EdgeSE2 {
+    /// An edge measuring the pose of j in the frame of i.
+    pub fn new(measurement: SE2) -> Self {
+        Self { measurement, inverse: measurement.inverse() }
+    }
+    /// The measured relative pose Z.
+    pub fn measurement(&self) -> &SE2 {
+        &self.measurement
+    }
+}
+
+impl BinaryEdge<3, 3, 3> for EdgeSE2 {
+    type V1 = SE2;
+    type V2 = SE2;
+    const NAME: &'static str = "EDGE_SE2";
+
+    fn error(&self, xi: &SE2, xj: &SE2) -> Vector3<f64> {
+        self.inverse.compose(&xi.between(xj)).to_vector()
+    }
+
+    fn jacobians(&self, xi: &SE2, xj: &SE2) -> (Matrix3<f64>, Matrix3<f64>) {
+        let rzt = self.measurement.rotation().transpose();
+        let rit = xi.rotation().transpose();
+        let a = rzt * rit;
+        let dt = xj.t - xi.t;
+        let dth = rzt * d_rotation_transpose(xi.theta) * dt;
+        let mut ji = Matrix3::zeros();
+        ji.fixed_view_mut::<2, 2>(0, 0).copy_from(&(-a));
+        ji.fixed_view_mut::<2, 1>(0, 2).copy_from(&dth);
+        ji[(2, 2)] = -1.0;
+        let mut jj = Matrix3::zeros();
+        jj.fixed_view_mut::<2, 2>(0, 0).copy_from(&a);
+        jj[(2, 2)] = 1.0;
+        (ji, jj)
+    }
+
+    fn predict_second(&self, xi: &SE2) -> Option<SE2> {
+        Some(xi.compose(&self.measurement))
+    }
+    fn predict_first(&self, xj: &SE2) -> Option<SE2> {
+        Some(xj.compose(&self.inverse))
+    }
+}
+
+/// Observation of a 2D point from an SE2 pose (g2o `EDGE_SE2_XY`, also
+/// `LANDMARK2`): e = Rᵢᵀ(l − tᵢ) − z.
+#[derive(Clone, Debug, PartialEq)]
+pub struct EdgeSE2XY {
+    measurement: Vector2<f64>,
+}
+
+impl EdgeSE2XY {
+    /// An edge measuring the point in the pose's frame.
+    pub fn new(measurement: Vector2<f64>) -> Self {
+        Self { measurement }
+    }
+    /// The measured point z.
+    pub fn measurement(&self) -> &Vector2<f64> {
+        &self.measurement
+    }
+}
+
+impl BinaryEdge<2, 3, 2> for EdgeSE2XY {
+    type V1 = SE2;
+    type V2 = Vector2<f64>;
+    const NAME: &'static str = "EDGE_SE2_XY";
+
+    fn error(&self, x: &SE2, l: &Vector2<f64>) -> Vector2<f64> {
+        x.rotation().transpose() * (l - x.t) - self.measurement
+    }
+
+    fn jacobians(&self, x: &SE2, l: &Vector2<f64>) -> (SMatrix<f64, 2, 3>, Matrix2<f64>) {
+        let rt = x.rotation().transpose();
+        let mut jx = SMatrix::<f64, 2, 3>::zeros();
+        jx.fixed_view_mut::<2, 2>(0, 0).copy_from(&(-rt));
+        jx.fixed_view_mut::<2, 1>(0, 2).copy_from(&(d_rotation_transpose(x.theta) * (l - x.t)));
+        (jx, rt)
+    }
+
+    fn predict_second(&self, x: &SE2) -> Option<Vector2<f64>> {
+        Some(x.transform_point(&self.measurement))
+    }
+}
+
+/// A prior on an SE2 pose (g2o `EDGE_PRIOR_SE2`): e = t2v(Z⁻¹ · X).
+#[derive(Clone, Debug, PartialEq)]
+pub struct EdgePriorSE2 {
+    measurement: SE2,
+    inverse: SE2,
+}
+
+impl EdgePriorSE2 {
+    /// A prior pulling the pose towards `measurement`.
+    pub fn new(measurement: SE2) -> Self {
+        Self { measurement, inverse: measurement.inverse() }
+    }
+    /// The prior mean Z.
+    pub fn measurement(&self) -> &SE2 {
+        &self.measurement
+    }
+}
+
+impl UnaryEdge<3, 3> for EdgePriorSE2 {
+    type V = SE2;
+    const NAME: &'static str = "EDGE_PRIOR_SE2";
+
+    fn error(&self, x: &SE2) -> Vector3<f64> {
+        self.inverse.compose(x).to_vector()
+    }
+
+    fn jacobian(&self, _x: &SE2) -> Matrix3<f64> {
+        let mut j = Matrix3::identity();
+        j.fixed_view_mut::<2, 2>(0, 0).copy_from(&self.measurement.rotation().transpose());
+        j
+    }
+}
+
+/// Relative pose between two SE3 poses (g2o `EDGE_SE3:QUAT`):
+/// E = Z⁻¹ · Xᵢ⁻¹ · Xⱼ, e = (t_E, qx qy qz of q_E with qw ≥ 0).
+#[derive(Clone, Debug, PartialEq)]
+pub struct EdgeSE3 {
+    measurement: SE3,
+    inverse: SE3,
+}
+
+impl EdgeSE3 {
+    /// An edge measuring the pose of j in the frame of i.
+    pub fn new(measurement: SE3) -> Self {
+        Self { measurement, inverse: measurement.inverse() }
+    }
+    /// The measured relative pose Z.
+    pub fn measurement(&self) -> &SE3 {
+        &self.measurement
+    }
+}
+
+impl BinaryEdge<6, 6, 6> for EdgeSE3 {
+    type V1 = SE3;
+    type V2 = SE3;
+    const NAME: &'static str = "EDGE_SE3:QUAT";
+
+    fn error(&self, xi: &SE3, xj: &SE3) -> Vector6<f64> {
+        self.inverse.compose(&xi.between(xj)).to_mqt()
+    }
+
+    /// With B = Xᵢ⁻¹Xⱼ and E = Z⁻¹B: perturbing Xⱼ ← Xⱼ·Δ gives E·Δ, so
+    /// Jⱼ = [[R_E, 0], [0, w·I + [v]×]] for q_E = (w, v). Perturbing Xᵢ ← Xᵢ·Δ gives
+    /// E·(B⁻¹Δ⁻¹B), a local step δ' = M·δ with
+    /// M = [[−R_Bᵀ, 2·R_Bᵀ[t_B]×], [0, −R_Bᵀ]], so Jᵢ = Jⱼ·M.
+    fn jacobians(&self, xi: &SE3, xj: &SE3) -> (Matrix6<f64>, Matrix6<f64>) {
+        let b = xi.between(xj);
+        let e = self.inverse.compose(&b);
+        let q = canonical(&e.q);
+        let mut jj = Matrix6::zeros();
+        jj.fixed_view_mut::<3, 3>(0, 0).copy_from(&e.rotation());
+        let v = Vector3::new(q.i, q.j, q.k);
+        jj.fixed_view_mut::<3, 3>(3, 3).copy_from(&(Matrix3::identity() * q.w + skew(&v)));
+
+        let rbt = b.rotation().transpose();
+        let mut m = Matrix6::zeros();
+        m.fixed_view_mut::<3, 3>(0, 0).copy_from(&(-rbt));
+        m.fixed_view_mut::<3, 3>(0, 3).copy_from(&(rbt * skew(&b.t) * 2.0));
+        m.fixed_view_mut::<3, 3>(3, 3).copy_from(&(-rbt));
+        (jj * m, jj)
+    }
+
+    fn predict_second(&self, xi: &SE3) -> Option<SE3> {
+        Some(xi.compose(&self.measurement))
+    }
+    fn predict_first(&self, xj: &SE3) -> Option<SE3> {
+        Some(xj.compose(&self.inverse))
+    }
+}
+

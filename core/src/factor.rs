@@ -1,0 +1,259 @@
+//! Factor groups: all edges of one type, stored together so that linearising
+//! them is one monomorphised, parallel loop (one `dyn` call per edge type per
+//! iteration, none per edge or per block).
+
+use crate::edge::{BinaryEdge, UnaryEdge};
+use crate::layout;
+use crate::values::Values;
+use nalgebra::{SMatrix, SVector};
+use rayon::prelude::*;
+use std::any::{Any, TypeId};
+
+/// Edges per parallel work item; also the chunk of the deterministic χ² sum.
+pub const CHUNK: usize = 512;
+
+/// Sums `f(0) + … + f(n−1)` in parallel, always in the same order whatever the
+/// number of threads, so results are reproducible bit for bit.
+pub fn deterministic_sum(n: usize, f: impl Fn(usize) -> f64 + Sync) -> f64 {
+    let partial: Vec<f64> = (0..n.div_ceil(CHUNK))
+        .into_par_iter()
+        .map(|c| (c * CHUNK..n.min((c + 1) * CHUNK)).map(&f).sum())
+        .collect();
+    partial.iter().sum()
+}
+
+/// The object-safe view of a group of edges of one type.
+pub trait FactorGroup: Send + Sync + 'static {
+    /// The edge type's name (g2o tag style).
+    fn name(&self) -> &'static str;
+    /// `TypeId` of the edge type.
+    fn edge_type(&self) -> TypeId;
+    /// Number of edges.
+    fn len(&self) -> usize;
+    /// Whether the group is empty.
+    fn is_empty(&self) -> bool {
+        self.len() == 0
+    }
+    /// Dimension of the error vector.
+    fn error_dim(&self) -> usize;
+    /// Tangent dimension of each of the edge's vertices, in edge order.
+    fn vertex_dims(&self) -> &[usize];
+    /// Vertex indices of edge `i`.
+    fn vertices(&self, i: usize) -> &[usize];
+    /// Edge `i` itself, for downcasting to its concrete type.
+    fn edge(&self, i: usize) -> &dyn Any;
+    /// Information matrix of edge `i`, column-major `error_dim × error_dim`.
+    fn information(&self, i: usize) -> &[f64];
+    /// χ² = eᵀΩe of edge `i`.
+    fn chi2(&self, i: usize, values: &Values) -> f64;
+    /// Error vector of edge `i` written into `out` (length `error_dim`).
+    fn error(&self, i: usize, values: &Values, out: &mut [f64]);
+    /// Writes every edge's slot (see [`crate::layout`]) into `out`, which holds
+    /// `len × stride` scalars.
+    fn linearize(&self, values: &Values, out: &mut [f64]);
+    /// Sets the other vertex of edge `i` from the vertex in position `known`
+    /// (spanning-tree initialisation). Returns the vertex set, if any.
+    fn propagate(&self, i: usize, known: usize, values: &mut Values) -> Option<usize>;
+    /// Upcast for downcasting to the concrete group.
+    fn as_any_mut(&mut self) -> &mut dyn Any;
+
+    /// Sum of χ² over the group, deterministic.
+    fn total_chi2(&self, values: &Values) -> f64 {
+        deterministic_sum(self.len(), |i| self.chi2(i, values))
+    }
+}
+
+struct Entry<T, const E: usize, const N: usize> {
+    edge: T,
+    vertices: [usize; N],
+    information: SMatrix<f64, E, E>,
+}
+
+/// All edges of one unary type.
+pub struct UnaryGroup<T, const E: usize, const D: usize> {
+    entries: Vec<Entry<T, E, 1>>,
+    dims: [usize; 1],
+}
+
+impl<T: UnaryEdge<E, D>, const E: usize, const D: usize> UnaryGroup<T, E, D> {
+    /// An empty group.
+    pub fn new() -> Self {
+        Self { entries: Vec::new(), dims: [D] }
+    }
+    /// Appends an edge (vertex index and information already checked).
+    pub fn push(&mut self, edge: T, vertex: usize, information: SMatrix<f64, E, E>) -> usize {
+        self.entries.push(Entry { edge, vertices: [vertex], information });
+        self.entries.len() - 1
+    }
+    fn eval(&self, i: usize, values: &Values) -> (T::V, SVector<f64, E>) {
+        let en = &self.entries[i];
+        let x = values.get::<T::V, D>(en.vertices[0]);
+        let e = en.edge.error(&x);
+        (x, e)
+    }
+}
+
+impl<T: UnaryEdge<E, D>, const E: usize, const D: usize> Default for UnaryGroup<T, E, D> {
+    fn default() -> Self {
+        Self::new()
+    }
+}
+
+impl<T: UnaryEdge<E, D>, const E: usize, const D: usize> FactorGroup for UnaryGroup<T, E, D> {
+    fn name(&self) -> &'static str {
+        T::NAME
+    }
+    fn edge_type(&self) -> TypeId {
+        TypeId::of::<T>()
+    }
+    fn len(&self) -> usize {
+        self.entries.len()
+    }
+    fn error_dim(&self) -> usize {
+        E
+    }
+    fn vertex_dims(&self) -> &[usize] {
+        &self.dims
+    }
+    fn vertices(&self, i: usize) -> &[usize] {
+        &self.entries[i].vertices
+    }
+    fn edge(&self, i: usize) -> &dyn Any {
+        &self.entries[i].edge
+    }
+    fn information(&self, i: usize) -> &[f64] {
+        self.entries[i].information.as_slice()
+    }
+    fn chi2(&self, i: usize, values: &Values) -> f64 {
+        let e = self.eval(i, values).1;
+        e.dot(&(self.entries[i].information * e))
+    }
+    fn error(&self, i: usize, values: &Values, out: &mut [f64]) {
+        out.copy_from_slice(self.eval(i, values).1.as_slice());
+    }
+    fn linearize(&self, values: &Values, out: &mut [f64]) {
+        let stride = layout::stride(&self.dims);
+        let g0 = layout::gradient_offset(&self.dims, 0);
+        out.par_chunks_mut(stride).zip(self.entries.par_iter()).with_min_len(CHUNK).enumerate().for_each(
+            |(i, (slot, en))| {
+                let (x, e) = self.eval(i, values);
+                let j = en.edge.jacobian(&x);
+                let oj = en.information * j;
+                slot[..D * D].copy_from_slice((j.transpose() * oj).as_slice());
+                slot[g0..g0 + D].copy_from_slice((oj.transpose() * e).as_slice());
+                slot[stride - 1] = e.dot(&(en.information * e));
+            },
+        );
+    }
+    fn propagate(&self, _i: usize, _known: usize, _values: &mut Values) -> Option<usize> {
+        None
+    }
+    fn as_any_mut(&mut self) -> &mut dyn Any {
+        self
+    }
+}
+
+/// All edges of one binary type.
+pub struct BinaryGroup<T, const E: usize, const D1: usize, const D2: usize> {
+    entries: Vec<Entry<T, E, 2>>,
+    dims: [usize; 2],
+}
+
+impl<T: BinaryEdge<E, D1, D2>, const E: usize, const D1: usize, const D2: usize> BinaryGroup<T, E, D1, D2> {
+    /// An empty group.
+    pub fn new() -> Self {
+        Self { entries: Vec::new(), dims: [D1, D2] }
+    }
+    /// Appends an edge (vertex indices and information already checked).
+    pub fn push(&mut self, edge: T, vertices: [usize; 2], information: SMatrix<f64, E, E>) -> usize {
+        self.entries.push(Entry { edge, vertices, information });
+        self.entries.len() - 1
+    }
+    fn eval(&self, i: usize, values: &Values) -> (T::V1, T::V2, SVector<f64, E>) {
+        let en = &self.entries[i];
+        let x1 = values.get::<T::V1, D1>(en.vertices[0]);
+        let x2 = values.get::<T::V2, D2>(en.vertices[1]);
+        let e = en.edge.error(&x1, &x2);
+        (x1, x2, e)
+    }
+}
+
+impl<T: BinaryEdge<E, D1, D2>, const E: usize, const D1: usize, const D2: usize> Default
+    for BinaryGroup<T, E, D1, D2>
+{
+    fn default() -> Self {
+        Self::new()
+    }
+}
+
+impl<T: BinaryEdge<E, D1, D2>, const E: usize, const D1: usize, const D2: usize> FactorGroup
+    for BinaryGroup<T, E, D1, D2>
+{
+    fn name(&self) -> &'static str {
+        T::NAME
+    }
+    fn edge_type(&self) -> TypeId {
+        TypeId::of::<T>()
+    }
+    fn len(&self) -> usize {
+        self.entries.len()
+    }
+    fn error_dim(&self) -> usize {
+        E
+    }
+    fn vertex_dims(&self) -> &[usize] {
+        &self.dims
+    }
+    fn vertices(&self, i: usize) -> &[usize] {
+        &self.entries[i].vertices
+    }
+    fn edge(&self, i: usize) -> &dyn Any {
+        &self.entries[i].edge
+    }
+    fn information(&self, i: usize) -> &[f64] {
+        self.entries[i].information.as_slice()
+    }
+    fn chi2(&self, i: usize, values: &Values) -> f64 {
+        let e = self.eval(i, values).2;
+        e.dot(&(self.entries[i].information * e))
+    }
+    fn error(&self, i: usize, values: &Values, out: &mut [f64]) {
+        out.copy_from_slice(self.eval(i, values).2.as_slice());
+    }
+    fn linearize(&self, values: &Values, out: &mut [f64]) {
+        let stride = layout::stride(&self.dims);
+        let (o12, o22) = (D1 * D1, D1 * D1 + D1 * D2);
+        let g1 = layout::gradient_offset(&self.dims, 0);
+        let g2 = g1 + D1;
+        out.par_chunks_mut(stride).zip(self.entries.par_iter()).with_min_len(CHUNK).enumerate().for_each(
+            |(i, (slot, en))| {
+                let (x1, x2, e) = self.eval(i, values);
+                let (j1, j2) = en.edge.jacobians(&x1, &x2);
+                let oj1 = en.information * j1;
+                let oj2 = en.information * j2;
+                slot[..o12].copy_from_slice((j1.transpose() * oj1).as_slice());
+                slot[o12..o22].copy_from_slice((j1.transpose() * oj2).as_slice());
+                slot[o22..g1].copy_from_slice((j2.transpose() * oj2).as_slice());
+                slot[g1..g2].copy_from_slice((oj1.transpose() * e).as_slice());
+                slot[g2..g2 + D2].copy_from_slice((oj2.transpose() * e).as_slice());
+                slot[stride - 1] = e.dot(&(en.information * e));
+            },
+        );
+    }
+    fn propagate(&self, i: usize, known: usize, values: &mut Values) -> Option<usize> {
+        let en = &self.entries[i];
+        let [a, b] = en.vertices;
+        if known == 0 {
+            let x2 = en.edge.predict_second(&values.get::<T::V1, D1>(a))?;
+            values.set(b, &x2);
+            Some(b)
+        } else {
+            let x1 = en.edge.predict_first(&values.get::<T::V2, D2>(b))?;
+            values.set(a, &x1);
+            Some(a)
+        }
+    }
+    fn as_any_mut(&mut self) -> &mut dyn Any {
+        self
+    }
+}

@@ -1,0 +1,100 @@
+//! The rigid-body group SE(3) as translation plus unit quaternion, with g2o's
+//! "MQT" minimal vector (t, qx, qy, qz with qw ≥ 0).
+
+use nalgebra::{Matrix3, Quaternion, UnitQuaternion, Vector3, Vector6};
+
+/// A 3D pose: rotation `q` then translation `t` (x ↦ q·x + t).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct SE3 {
+    /// Translation.
+    pub t: Vector3<f64>,
+    /// Rotation.
+    pub q: UnitQuaternion<f64>,
+}
+
+impl Default for SE3 {
+    fn default() -> Self {
+        Self::identity()
+    }
+}
+
+impl SE3 {
+    /// A pose from a translation and a rotation.
+    pub fn new(t: Vector3<f64>, q: UnitQuaternion<f64>) -> Self {
+        Self { t, q }
+    }
+
+    /// The identity pose.
+    pub fn identity() -> Self {
+        Self { t: Vector3::zeros(), q: UnitQuaternion::identity() }
+    }
+
+    /// Group composition `self · other`.
+    pub fn compose(&self, other: &SE3) -> SE3 {
+        SE3 { t: self.t + self.q * other.t, q: self.q * other.q }
+    }
+
+    /// Group inverse.
+    pub fn inverse(&self) -> SE3 {
+        let qi = self.q.inverse();
+        SE3 { t: -(qi * self.t), q: qi }
+    }
+
+    /// `self⁻¹ · other`.
+    pub fn between(&self, other: &SE3) -> SE3 {
+        let qi = self.q.inverse();
+        SE3 { t: qi * (other.t - self.t), q: qi * other.q }
+    }
+
+    /// Rotation matrix.
+    pub fn rotation(&self) -> Matrix3<f64> {
+        self.q.to_rotation_matrix().into_inner()
+    }
+
+    /// Applies the pose to a point.
+    pub fn transform_point(&self, p: &Vector3<f64>) -> Vector3<f64> {
+        self.t + self.q * p
+    }
+
+    /// g2o's `toVectorMQT`: (t, qx, qy, qz) with the quaternion's sign chosen so
+    /// that qw ≥ 0. The rotation part is ≈ θ/2 · axis, not the log map.
+    pub fn to_mqt(&self) -> Vector6<f64> {
+        let q = canonical(&self.q);
+        Vector6::new(self.t.x, self.t.y, self.t.z, q.i, q.j, q.k)
+    }
+
+    /// g2o's `fromVectorMQT`: the inverse of [`SE3::to_mqt`] (see
+    /// [`quaternion_from_vector`] for vector parts of norm above one).
+    pub fn from_mqt(v: &Vector6<f64>) -> SE3 {
+        SE3 { t: Vector3::new(v[0], v[1], v[2]), q: quaternion_from_vector(&Vector3::new(v[3], v[4], v[5])) }
+    }
+}
+
+/// The quaternion's coefficients with the sign chosen so that w ≥ 0.
+pub fn canonical(q: &UnitQuaternion<f64>) -> Quaternion<f64> {
+    let q = *q.quaternion();
+    if q.w < 0.0 { -q } else { q }
+}
+
+/// The unit quaternion (√(1−|v|²), v). A vector of norm above one names no
+/// rotation; like g2o's `fromCompactQuaternion` it then gives the identity.
+pub fn quaternion_from_vector(v: &Vector3<f64>) -> UnitQuaternion<f64> {
+    let w2 = 1.0 - v.norm_squared();
+    if w2 < 0.0 {
+        UnitQuaternion::identity()
+    } else {
+        UnitQuaternion::new_unchecked(Quaternion::new(w2.sqrt(), v.x, v.y, v.z))
+    }
+}
+
+/// The skew-symmetric matrix with `skew(a) · b = a × b`.
+pub fn skew(a: &Vector3<f64>) -> Matrix3<f64> {
+    Matrix3::new(0.0, -a.z, a.y, a.z, 0.0, -a.x, -a.y, a.x, 0.0)
+}
+
+impl std::ops::Mul for SE3 {
+    type Output = SE3;
+    fn mul(self, rhs: SE3) -> SE3 {
+        self.compose(&rhs)
+    }
+}

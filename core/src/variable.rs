@@ -1,0 +1,98 @@
+//! Variables (g2o "vertices"): values on a manifold with a D-dimensional update.
+
+use crate::se2::SE2;
+use crate::se3::{SE3, quaternion_from_vector};
+use nalgebra::{Quaternion, SVector, UnitQuaternion, Vector2, Vector3};
+
+/// A variable whose tangent space has `D` dimensions.
+///
+/// The value is stored in the graph as `PARAMS` plain numbers (g2o's "estimate
+/// data"), which keeps all variables in one flat buffer and lets the g2o reader
+/// and writer handle any variable type by its parameters.
+///
+/// ```
+/// use cairn_core::{SE2, Variable};
+/// use nalgebra::Vector3;
+/// let x = SE2::new(1.0, 2.0, 0.5).oplus(&Vector3::new(0.1, 0.0, 0.0));
+/// assert_eq!(x.t.x, 1.1); // SE2 updates are additive, as in g2o
+/// ```
+pub trait Variable<const D: usize>: Clone + Default + std::fmt::Debug + Send + Sync + 'static {
+    /// Number of stored parameters.
+    const PARAMS: usize;
+    /// Name for messages (g2o tag style, e.g. `"SE2"`).
+    const NAME: &'static str;
+    /// Whether this is a pose; the automatic gauge fixes the lowest-id pose of
+    /// each connected component.
+    const IS_POSE: bool = false;
+
+    /// Builds the value from `PARAMS` parameters. It may normalise them (unit
+    /// quaternions, wrapped angles).
+    fn from_params(p: &[f64]) -> Self;
+    /// Writes the `PARAMS` parameters into `out`.
+    fn write_params(&self, out: &mut [f64]);
+    /// The update `x ⊞ δ` (g2o `oplusImpl`).
+    fn oplus(&self, delta: &SVector<f64, D>) -> Self;
+}
+
+impl Variable<3> for SE2 {
+    const PARAMS: usize = 3;
+    const NAME: &'static str = "SE2";
+    const IS_POSE: bool = true;
+
+    fn from_params(p: &[f64]) -> Self {
+        SE2::new(p[0], p[1], p[2])
+    }
+    fn write_params(&self, out: &mut [f64]) {
+        out[..3].copy_from_slice(&[self.t.x, self.t.y, self.theta]);
+    }
+    /// Additive on (x, y, θ) with the angle wrapped, like g2o's `VertexSE2`.
+    fn oplus(&self, d: &Vector3<f64>) -> Self {
+        SE2::new(self.t.x + d.x, self.t.y + d.y, self.theta + d.z)
+    }
+}
+
+/// A 2D point landmark (g2o `VERTEX_XY`).
+impl Variable<2> for Vector2<f64> {
+    const PARAMS: usize = 2;
+    const NAME: &'static str = "XY";
+
+    fn from_params(p: &[f64]) -> Self {
+        Vector2::new(p[0], p[1])
+    }
+    fn write_params(&self, out: &mut [f64]) {
+        out[..2].copy_from_slice(self.as_slice());
+    }
+    fn oplus(&self, d: &Vector2<f64>) -> Self {
+        self + d
+    }
+}
+
+impl Variable<6> for SE3 {
+    /// x y z qx qy qz qw, the order of g2o's `VERTEX_SE3:QUAT` lines.
+    const PARAMS: usize = 7;
+    const NAME: &'static str = "SE3";
+    const IS_POSE: bool = true;
+
+    fn from_params(p: &[f64]) -> Self {
+        let q = Quaternion::new(p[6], p[3], p[4], p[5]);
+        // Renormalise only when needed, so that reading what we wrote is exact.
+        let n2 = q.norm_squared();
+        let q = if (n2 - 1.0).abs() > 4.0 * f64::EPSILON {
+            UnitQuaternion::new_normalize(q)
+        } else {
+            UnitQuaternion::new_unchecked(q)
+        };
+        SE3::new(Vector3::new(p[0], p[1], p[2]), q)
+    }
+    fn write_params(&self, out: &mut [f64]) {
+        let q = self.q.quaternion();
+        out[..7].copy_from_slice(&[self.t.x, self.t.y, self.t.z, q.i, q.j, q.k, q.w]);
+    }
+    /// Right-multiplies by the increment (t, qx, qy, qz), g2o's `VertexSE3::oplusImpl`.
+    fn oplus(&self, d: &SVector<f64, 6>) -> Self {
+        let inc = SE3::new(Vector3::new(d[0], d[1], d[2]), quaternion_from_vector(&Vector3::new(d[3], d[4], d[5])));
+        let mut x = self.compose(&inc);
+        x.q.renormalize_fast();
+        x
+    }
+}

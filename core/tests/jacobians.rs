@@ -1,0 +1,102 @@
+//! Analytic Jacobians of every built-in edge against central differences at
+//! 1,000 random states each.
+
+use cairn_core::edge::{numeric_binary, numeric_unary};
+use cairn_core::se3::quaternion_from_vector;
+use cairn_core::{BinaryEdge, EdgePriorSE2, EdgeSE2, EdgeSE2XY, EdgeSE3, SE2, SE3, UnaryEdge};
+use nalgebra::{DMatrix, SMatrix, UnitQuaternion, Vector2, Vector3};
+use rand::rngs::StdRng;
+use rand::{Rng, SeedableRng};
+
+const STATES: usize = 1000;
+
+fn se2(rng: &mut StdRng) -> SE2 {
+    SE2::new(rng.random_range(-20.0..20.0), rng.random_range(-20.0..20.0), rng.random_range(-3.14..3.14))
+}
+
+fn se3(rng: &mut StdRng) -> SE3 {
+    let axis = Vector3::new(rng.random_range(-1.0..1.0), rng.random_range(-1.0..1.0), rng.random_range(-1.0..1.0));
+    let t = Vector3::new(rng.random_range(-10.0..10.0), rng.random_range(-10.0..10.0), rng.random_range(-10.0..10.0));
+    SE3::new(t, UnitQuaternion::from_scaled_axis(axis * rng.random_range(0.0..3.0)))
+}
+
+fn assert_close<const R: usize, const C: usize>(analytic: &SMatrix<f64, R, C>, numeric: &SMatrix<f64, R, C>, what: &str) {
+    let scale = 1.0f64.max(numeric.amax());
+    let diff = (analytic - numeric).amax();
+    assert!(
+        diff <= 1e-6 * scale,
+        "{what}: analytic and numeric Jacobians differ by {diff:e}\nanalytic {}\nnumeric {}",
+        DMatrix::from_column_slice(R, C, analytic.as_slice()),
+        DMatrix::from_column_slice(R, C, numeric.as_slice())
+    );
+}
+
+fn check_binary<T, const E: usize, const D1: usize, const D2: usize>(edge: &T, x1: &T::V1, x2: &T::V2)
+where
+    T: BinaryEdge<E, D1, D2>,
+{
+    let (a1, a2) = edge.jacobians(x1, x2);
+    let (n1, n2) = numeric_binary(edge, x1, x2);
+    assert_close(&a1, &n1, T::NAME);
+    assert_close(&a2, &n2, T::NAME);
+}
+
+#[test]
+fn edge_se2_jacobians() {
+    let mut rng = StdRng::seed_from_u64(1);
+    for _ in 0..STATES {
+        check_binary(&EdgeSE2::new(se2(&mut rng)), &se2(&mut rng), &se2(&mut rng));
+    }
+}
+
+#[test]
+fn edge_se2_xy_jacobians() {
+    let mut rng = StdRng::seed_from_u64(2);
+    for _ in 0..STATES {
+        let z = Vector2::new(rng.random_range(-10.0..10.0), rng.random_range(-10.0..10.0));
+        let l = Vector2::new(rng.random_range(-30.0..30.0), rng.random_range(-30.0..30.0));
+        check_binary(&EdgeSE2XY::new(z), &se2(&mut rng), &l);
+    }
+}
+
+#[test]
+fn edge_prior_se2_jacobian() {
+    let mut rng = StdRng::seed_from_u64(3);
+    for _ in 0..STATES {
+        let edge = EdgePriorSE2::new(se2(&mut rng));
+        let x = se2(&mut rng);
+        assert_close(&edge.jacobian(&x), &numeric_unary(&edge, &x), "EDGE_PRIOR_SE2");
+    }
+}
+
+#[test]
+fn edge_se3_jacobians() {
+    let mut rng = StdRng::seed_from_u64(4);
+    let mut checked = 0;
+    while checked < STATES {
+        let (edge, xi, xj) = (EdgeSE3::new(se3(&mut rng)), se3(&mut rng), se3(&mut rng));
+        // The error is discontinuous where q_E's real part changes sign.
+        let e = edge.measurement().inverse().compose(&xi.between(&xj));
+        if e.q.quaternion().w.abs() < 1e-3 {
+            continue;
+        }
+        check_binary(&edge, &xi, &xj);
+        checked += 1;
+    }
+}
+
+#[test]
+fn edge_se3_jacobians_near_the_optimum() {
+    // Small errors are where solvers spend their time.
+    let mut rng = StdRng::seed_from_u64(5);
+    for _ in 0..STATES {
+        let xi = se3(&mut rng);
+        let z = se3(&mut rng);
+        let noise = SE3::new(
+            Vector3::new(1e-3, -2e-3, 5e-4) * rng.random_range(-1.0..1.0),
+            quaternion_from_vector(&(Vector3::new(1e-3, 2e-3, -1e-3) * rng.random_range(-1.0..1.0))),
+        );
+        let xj = xi.compose(&z).compose(&noise);
+        check_binary(&EdgeSE3::new(z), &xi, &xj);
+    }
+}
