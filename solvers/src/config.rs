@@ -1,0 +1,193 @@
+//! Solver options with documented defaults, the per-iteration statistics and
+//! the final summary.
+
+use crate::linear::LinearSolverConfig;
+use serde::{Deserialize, Serialize};
+
+/// The nonlinear least-squares algorithm.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize, Deserialize)]
+pub enum Algorithm {
+    /// Gauss-Newton: solve H δ = −g and take the full step.
+    GaussNewton,
+    /// Levenberg-Marquardt with g2o's damping H + λI and its λ schedule.
+    #[default]
+    LevenbergMarquardt,
+}
+
+impl Algorithm {
+    /// Short name (`gn`, `lm`).
+    pub fn short_name(&self) -> &'static str {
+        match self {
+            Algorithm::GaussNewton => "gn",
+            Algorithm::LevenbergMarquardt => "lm",
+        }
+    }
+}
+
+/// Options of Levenberg-Marquardt (g2o's defaults).
+#[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
+pub struct LevenbergMarquardtConfig {
+    /// The first λ is `tau × max(diag H)`. Default 1e-5.
+    pub tau: f64,
+    /// Rejected steps in a row, with λ raised each time, before giving up. Default 10.
+    pub max_trials: usize,
+}
+
+impl Default for LevenbergMarquardtConfig {
+    fn default() -> Self {
+        Self { tau: 1e-5, max_trials: 10 }
+    }
+}
+
+/// Options of [`crate::Optimizer`].
+#[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
+pub struct SolverConfig {
+    /// GN or LM. Default LM.
+    pub algorithm: Algorithm,
+    /// Iteration cap. Default 100.
+    pub max_iterations: usize,
+    /// Stop when an iteration lowers χ² by less than this fraction. Default 1e-7.
+    pub relative_decrease: f64,
+    /// Stop when the largest gradient component |JᵀΩe| is below this. Default 1e-10.
+    pub gradient_tolerance: f64,
+    /// Stop when the largest step component is below this × (1 + largest
+    /// parameter). Default 1e-12.
+    pub step_tolerance: f64,
+    /// Levenberg-Marquardt options.
+    pub lm: LevenbergMarquardtConfig,
+    /// Linear solver options.
+    pub linear: LinearSolverConfig,
+}
+
+impl Default for SolverConfig {
+    fn default() -> Self {
+        Self {
+            algorithm: Algorithm::default(),
+            max_iterations: 100,
+            relative_decrease: 1e-7,
+            gradient_tolerance: 1e-10,
+            step_tolerance: 1e-12,
+            lm: LevenbergMarquardtConfig::default(),
+            linear: LinearSolverConfig::default(),
+        }
+    }
+}
+
+/// Why the optimisation stopped. Reaching the iteration cap is not an error.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
+pub enum Termination {
+    /// χ² fell by less than `relative_decrease` in an iteration.
+    RelativeDecrease,
+    /// The gradient is below `gradient_tolerance`.
+    GradientNorm,
+    /// The step is below `step_tolerance`.
+    StepSize,
+    /// `max_iterations` done.
+    MaxIterations,
+    /// LM: `max_trials` rejected steps in a row; the estimate is the best found.
+    NoImprovement,
+    /// GN: the Hessian was not positive definite; the estimate is the last one.
+    NotPositiveDefinite,
+    /// χ² became NaN or infinite after a GN step; the estimate is the last one.
+    NonFinite,
+    /// Every vertex is fixed: nothing to optimise.
+    NothingToOptimize,
+}
+
+impl Termination {
+    /// Whether this counts as convergence.
+    pub fn converged(&self) -> bool {
+        matches!(self, Self::RelativeDecrease | Self::GradientNorm | Self::StepSize | Self::NoImprovement)
+    }
+}
+
+/// Seconds spent in each phase.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Serialize, Deserialize)]
+pub struct PhaseTimes {
+    /// Errors, Jacobians and the edges' blocks.
+    pub linearize: f64,
+    /// Summing blocks into H and the gradient.
+    pub assemble: f64,
+    /// Numeric Cholesky.
+    pub factorize: f64,
+    /// Triangular solves.
+    pub solve: f64,
+    /// Applying the step (and LM backups).
+    pub update: f64,
+    /// χ² evaluations outside linearisation (LM trial steps).
+    pub chi2: f64,
+}
+
+impl PhaseTimes {
+    /// Adds `other` to `self`.
+    pub fn add(&mut self, other: &PhaseTimes) {
+        self.linearize += other.linearize;
+        self.assemble += other.assemble;
+        self.factorize += other.factorize;
+        self.solve += other.solve;
+        self.update += other.update;
+        self.chi2 += other.chi2;
+    }
+    /// Sum of all phases.
+    pub fn total(&self) -> f64 {
+        self.linearize + self.assemble + self.factorize + self.solve + self.update + self.chi2
+    }
+}
+
+/// Statistics of one iteration (g2o's `-stats` columns and more).
+#[derive(Clone, Copy, Debug, Default, PartialEq, Serialize, Deserialize)]
+pub struct IterationStats {
+    /// Iteration number, from 0.
+    pub iteration: usize,
+    /// χ² after the iteration.
+    pub chi2: f64,
+    /// λ after the iteration (LM only).
+    pub lambda: Option<f64>,
+    /// Steps tried (LM: 1 + rejected steps).
+    pub trials: usize,
+    /// Largest absolute gradient component at the linearisation point.
+    pub gradient_max: f64,
+    /// Largest absolute component of the accepted step (0 if none).
+    pub step_max: f64,
+    /// Seconds of this iteration.
+    pub time: f64,
+    /// Seconds since the optimisation started.
+    pub cumulative_time: f64,
+    /// Per-phase seconds of this iteration.
+    pub phases: PhaseTimes,
+}
+
+/// The outcome of an optimisation.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct Summary {
+    /// GN or LM.
+    pub algorithm: Algorithm,
+    /// χ² before the first iteration.
+    pub initial_chi2: f64,
+    /// χ² at the returned estimate.
+    pub final_chi2: f64,
+    /// Iterations done.
+    pub iterations: usize,
+    /// Why it stopped.
+    pub termination: Termination,
+    /// Vertex ids fixed automatically to remove the gauge freedom.
+    pub gauge: Vec<i64>,
+    /// Number of connected components.
+    pub components: usize,
+    /// Dimension of the linear system.
+    pub dimension: usize,
+    /// Stored entries of the upper triangle of H.
+    pub hessian_nnz: usize,
+    /// Stored values of the Cholesky factor.
+    pub factor_nnz: usize,
+    /// Whether faer chose a supernodal factorisation.
+    pub supernodal: bool,
+    /// Seconds for structure and symbolic analysis.
+    pub setup_time: f64,
+    /// Seconds of the iterations.
+    pub solve_time: f64,
+    /// Per-phase seconds summed over iterations.
+    pub phases: PhaseTimes,
+    /// One entry per iteration.
+    pub trace: Vec<IterationStats>,
+}

@@ -1,0 +1,407 @@
+//! Gauss-Newton and Levenberg-Marquardt over the fixed Hessian structure.
+
+use crate::config::{Algorithm, IterationStats, PhaseTimes, SolverConfig, Summary, Termination};
+use crate::linear::SparseCholesky;
+use crate::structure::HessianStructure;
+use crate::SolveError;
+use cairn_core::{Graph, VertexId};
+use std::time::Instant;
+
+/// Seconds since `t`.
+fn since(t: Instant) -> f64 {
+    t.elapsed().as_secs_f64()
+}
+
+fn max_abs(v: &[f64]) -> f64 {
+    v.iter().fold(0.0, |m, x| m.max(x.abs()))
+}
+
+/// An optimiser bound to one graph's structure. Build it once and call
+/// [`Optimizer::optimize`] as often as the values change; the Hessian pattern,
+/// the symbolic factorisation and every buffer are reused.
+///
+/// ```
+/// use cairn_core::{EdgeSE2, Graph, SE2};
+/// use cairn_solvers::{Algorithm, Optimizer, SolverConfig};
+/// use nalgebra::Matrix3;
+///
+/// let mut graph = Graph::new();
+/// let corners = [(0.0, 0.0), (1.1, 0.1), (0.9, 1.2), (-0.1, 0.9)];
+/// for (i, (x, y)) in corners.into_iter().enumerate() {
+///     graph.add_vertex(i as i64, SE2::new(x, y, 1.5 * i as f64))?;
+/// }
+/// for i in 0..4 {
+///     let odometry = EdgeSE2::new(SE2::new(1.0, 0.0, std::f64::consts::FRAC_PI_2));
+///     graph.add_edge(i, (i + 1) % 4, odometry, Matrix3::identity())?;
+/// }
+/// let config = SolverConfig { algorithm: Algorithm::GaussNewton, ..Default::default() };
+/// let summary = Optimizer::new(&graph, config)?.optimize(&mut graph)?;
+/// assert!(summary.final_chi2 < 1e-12); // a consistent square closes exactly
+/// assert_eq!(summary.gauge, vec![0]);
+/// # Ok::<(), Box<dyn std::error::Error>>(())
+/// ```
+#[derive(Debug)]
+pub struct Optimizer {
+    config: SolverConfig,
+    structure: HessianStructure,
+    cholesky: Option<SparseCholesky>,
+    buffer: Vec<f64>,
+    hessian: Vec<f64>,
+    diagonal_backup: Vec<f64>,
+    gradient: Vec<f64>,
+    step: Vec<f64>,
+    backup: Vec<f64>,
+    free: Vec<usize>,
+    gauge: Vec<VertexId>,
+    components: usize,
+    shape: (usize, usize),
+    setup_time: f64,
+}
+
+impl Optimizer {
+    /// Builds the structure for `graph`: its FIX vertices are held constant, and
+    /// each connected component without a fixed vertex or full prior gets its
+    /// lowest-id pose fixed too.
+    pub fn new(graph: &Graph, config: SolverConfig) -> Result<Self, SolveError> {
+        let start = Instant::now();
+        let gauge_vertices = graph.gauge_vertices();
+        let mut fixed: Vec<bool> = (0..graph.num_vertices()).map(|v| graph.is_fixed(v)).collect();
+        for &v in &gauge_vertices {
+            fixed[v] = true;
+        }
+        let structure = HessianStructure::new(graph, &fixed)?;
+        let cholesky = if structure.dim > 0 {
+            Some(SparseCholesky::analyze(structure.pattern.as_ref(), &config.linear)?)
+        } else {
+            None
+        };
+        let free = (0..graph.num_vertices()).filter(|&v| !fixed[v]).collect();
+        Ok(Self {
+            config,
+            buffer: vec![0.0; structure.buffer_len],
+            hessian: vec![0.0; structure.nnz()],
+            diagonal_backup: vec![0.0; structure.diagonal.len()],
+            gradient: vec![0.0; structure.dim],
+            step: vec![0.0; structure.dim],
+            backup: graph.values().params().to_vec(),
+            free,
+            gauge: gauge_vertices.iter().map(|&v| graph.vertex(v).id).collect(),
+            components: graph.components().count,
+            shape: (graph.num_vertices(), graph.num_edges()),
+            structure,
+            cholesky,
+            setup_time: since(start),
+        })
+    }
+
+    /// The options in use.
+    pub fn config(&self) -> &SolverConfig {
+        &self.config
+    }
+
+    /// Changes the options that do not affect the structure (algorithm,
+    /// stopping rules, LM settings).
+    pub fn set_config(&mut self, config: SolverConfig) {
+        self.config = SolverConfig { linear: self.config.linear, ..config };
+    }
+
+    /// Optimises the graph's values in place.
+    pub fn optimize(&mut self, graph: &mut Graph) -> Result<Summary, SolveError> {
+        self.optimize_with(graph, &mut |_| {})
+    }
+
+    /// Optimises, calling `on_iteration` after every iteration (for progress
+    /// output in g2o's style).
+    pub fn optimize_with(
+        &mut self,
+        graph: &mut Graph,
+        on_iteration: &mut dyn FnMut(&IterationStats),
+    ) -> Result<Summary, SolveError> {
+        if (graph.num_vertices(), graph.num_edges()) != self.shape {
+            return Err(SolveError::GraphChanged);
+        }
+        let start = Instant::now();
+        let mut phases = PhaseTimes::default();
+        let chi2 = self.linearize(graph, &mut phases);
+        if !chi2.is_finite() {
+            return Err(non_finite_edge(graph));
+        }
+        let mut summary = Summary {
+            algorithm: self.config.algorithm,
+            initial_chi2: chi2,
+            final_chi2: chi2,
+            iterations: 0,
+            termination: Termination::MaxIterations,
+            gauge: self.gauge.clone(),
+            components: self.components,
+            dimension: self.structure.dim,
+            hessian_nnz: self.structure.nnz(),
+            factor_nnz: self.cholesky.as_ref().map_or(0, |c| c.factor_nnz()),
+            supernodal: self.cholesky.as_ref().is_some_and(|c| c.is_supernodal()),
+            setup_time: self.setup_time,
+            solve_time: 0.0,
+            phases,
+            trace: Vec::new(),
+        };
+        if self.structure.dim == 0 {
+            summary.termination = Termination::NothingToOptimize;
+            return Ok(summary);
+        }
+        let termination = match self.config.algorithm {
+            Algorithm::GaussNewton => self.gauss_newton(graph, &mut summary, start, on_iteration),
+            Algorithm::LevenbergMarquardt => self.levenberg_marquardt(graph, &mut summary, start, on_iteration),
+        };
+        summary.termination = termination;
+        summary.iterations = summary.trace.len();
+        summary.solve_time = since(start);
+        summary.phases = summary.trace.iter().fold(phases, |mut acc, s| {
+            acc.add(&s.phases);
+            acc
+        });
+        Ok(summary)
+    }
+
+    /// Linearises every edge and assembles H and the gradient; returns χ².
+    fn linearize(&mut self, graph: &Graph, phases: &mut PhaseTimes) -> f64 {
+        let t = Instant::now();
+        let values = graph.values();
+        let groups = graph.factor_groups();
+        for (k, group) in groups.iter().enumerate() {
+            let start = self.structure.group_offset[k];
+            let end = self.structure.group_offset.get(k + 1).copied().unwrap_or(self.structure.buffer_len);
+            group.linearize(values, &mut self.buffer[start..end]);
+        }
+        phases.linearize += since(t);
+        let t = Instant::now();
+        self.structure.assemble_hessian(&self.buffer, &mut self.hessian);
+        self.structure.assemble_gradient(&self.buffer, &mut self.gradient);
+        let chi2 = self.structure.chi2(&self.buffer);
+        phases.assemble += since(t);
+        chi2
+    }
+
+    /// Factorises H + λI (λ = 0 for GN) and solves for the step −(H + λI)⁻¹g.
+    fn compute_step(&mut self, lambda: f64, phases: &mut PhaseTimes) -> bool {
+        let Some(cholesky) = self.cholesky.as_mut() else { return false };
+        let t = Instant::now();
+        if lambda != 0.0 {
+            for (k, &d) in self.structure.diagonal.iter().enumerate() {
+                self.diagonal_backup[k] = self.hessian[d];
+                self.hessian[d] += lambda;
+            }
+        }
+        let ok = cholesky.factorize(self.structure.pattern.as_ref(), &self.hessian).is_ok();
+        if lambda != 0.0 {
+            for (k, &d) in self.structure.diagonal.iter().enumerate() {
+                self.hessian[d] = self.diagonal_backup[k];
+            }
+        }
+        phases.factorize += since(t);
+        if !ok {
+            return false;
+        }
+        let t = Instant::now();
+        for (s, g) in self.step.iter_mut().zip(&self.gradient) {
+            *s = -g;
+        }
+        cholesky.solve_in_place(&mut self.step);
+        phases.solve += since(t);
+        self.step.iter().all(|s| s.is_finite())
+    }
+
+    fn apply_step(&self, graph: &mut Graph) {
+        for &v in &self.free {
+            if let Some(c) = self.structure.column[v] {
+                let dim = graph.vertex(v).kind.dim;
+                graph.oplus(v, &self.step[c..c + dim]);
+            }
+        }
+    }
+
+    fn save(&mut self, graph: &Graph) {
+        self.backup.copy_from_slice(graph.values().params());
+    }
+
+    fn restore(&self, graph: &mut Graph) {
+        graph.values_mut().params_mut().copy_from_slice(&self.backup);
+    }
+
+    fn step_is_small(&self, graph: &Graph) -> bool {
+        let scale = 1.0 + max_abs(graph.values().params());
+        max_abs(&self.step) <= self.config.step_tolerance * scale
+    }
+
+    fn gauss_newton(
+        &mut self,
+        graph: &mut Graph,
+        summary: &mut Summary,
+        start: Instant,
+        on_iteration: &mut dyn FnMut(&IterationStats),
+    ) -> Termination {
+        let mut chi2 = summary.initial_chi2;
+        for iteration in 0..self.config.max_iterations {
+            let began = Instant::now();
+            let mut phases = PhaseTimes::default();
+            let gradient_max = max_abs(&self.gradient);
+            if gradient_max < self.config.gradient_tolerance {
+                return Termination::GradientNorm;
+            }
+            if !self.compute_step(0.0, &mut phases) {
+                return Termination::NotPositiveDefinite;
+            }
+            let t = Instant::now();
+            self.save(graph);
+            self.apply_step(graph);
+            phases.update += since(t);
+            let new_chi2 = self.linearize(graph, &mut phases);
+            if !new_chi2.is_finite() {
+                self.restore(graph);
+                self.linearize(graph, &mut phases);
+                return Termination::NonFinite;
+            }
+            let decrease = (chi2 - new_chi2) / chi2;
+            chi2 = new_chi2;
+            summary.final_chi2 = chi2;
+            let stats = IterationStats {
+                iteration,
+                chi2,
+                lambda: None,
+                trials: 1,
+                gradient_max,
+                step_max: max_abs(&self.step),
+                time: since(began),
+                cumulative_time: since(start),
+                phases,
+            };
+            on_iteration(&stats);
+            summary.trace.push(stats);
+            if self.step_is_small(graph) {
+                return Termination::StepSize;
+            }
+            if (0.0..self.config.relative_decrease).contains(&decrease) {
+                return Termination::RelativeDecrease;
+            }
+        }
+        Termination::MaxIterations
+    }
+
+    fn levenberg_marquardt(
+        &mut self,
+        graph: &mut Graph,
+        summary: &mut Summary,
+        start: Instant,
+        on_iteration: &mut dyn FnMut(&IterationStats),
+    ) -> Termination {
+        let mut chi2 = summary.initial_chi2;
+        let max_diagonal = self.structure.diagonal.iter().fold(0.0f64, |m, &d| m.max(self.hessian[d].abs()));
+        let mut lambda = self.config.lm.tau * max_diagonal.max(f64::MIN_POSITIVE);
+        let mut ni = 2.0;
+        for iteration in 0..self.config.max_iterations {
+            let began = Instant::now();
+            let mut phases = PhaseTimes::default();
+            let gradient_max = max_abs(&self.gradient);
+            if gradient_max < self.config.gradient_tolerance || chi2 == 0.0 {
+                return Termination::GradientNorm;
+            }
+            self.save(graph);
+            let mut trials = 0;
+            let new_chi2 = loop {
+                trials += 1;
+                let solved = self.compute_step(lambda, &mut phases);
+                let mut trial_chi2 = f64::INFINITY;
+                if solved {
+                    let t = Instant::now();
+                    self.apply_step(graph);
+                    phases.update += since(t);
+                    let t = Instant::now();
+                    trial_chi2 = graph.chi2();
+                    phases.chi2 += since(t);
+                }
+                // Predicted decrease of the damped linear model, as in g2o.
+                let predicted: f64 =
+                    self.step.iter().zip(&self.gradient).map(|(s, g)| s * (lambda * s - g)).sum::<f64>() + 1e-3;
+                let rho = (chi2 - trial_chi2) / predicted;
+                if solved && rho > 0.0 && trial_chi2.is_finite() {
+                    let alpha = (1.0 - (2.0 * rho - 1.0).powi(3)).min(2.0 / 3.0);
+                    lambda *= alpha.max(1.0 / 3.0);
+                    ni = 2.0;
+                    break Some(trial_chi2);
+                }
+                lambda *= ni;
+                ni *= 2.0;
+                if solved {
+                    let t = Instant::now();
+                    self.restore(graph);
+                    phases.update += since(t);
+                }
+                if trials >= self.config.lm.max_trials || !lambda.is_finite() {
+                    break None;
+                }
+            };
+            let Some(new_chi2) = new_chi2 else {
+                let stats = IterationStats {
+                    iteration,
+                    chi2,
+                    lambda: Some(lambda),
+                    trials,
+                    gradient_max,
+                    step_max: 0.0,
+                    time: since(began),
+                    cumulative_time: since(start),
+                    phases,
+                };
+                on_iteration(&stats);
+                summary.trace.push(stats);
+                return Termination::NoImprovement;
+            };
+            let decrease = (chi2 - new_chi2) / chi2;
+            chi2 = new_chi2;
+            summary.final_chi2 = chi2;
+            let small_step = self.step_is_small(graph);
+            let converged = (0.0..self.config.relative_decrease).contains(&decrease);
+            let last = small_step || converged || iteration + 1 == self.config.max_iterations;
+            if !last {
+                self.linearize(graph, &mut phases);
+            }
+            let stats = IterationStats {
+                iteration,
+                chi2,
+                lambda: Some(lambda),
+                trials,
+                gradient_max,
+                step_max: max_abs(&self.step),
+                time: since(began),
+                cumulative_time: since(start),
+                phases,
+            };
+            on_iteration(&stats);
+            summary.trace.push(stats);
+            if small_step {
+                return Termination::StepSize;
+            }
+            if converged {
+                return Termination::RelativeDecrease;
+            }
+        }
+        Termination::MaxIterations
+    }
+}
+
+/// The error for a non-finite initial χ², naming the first offending edge.
+fn non_finite_edge(graph: &Graph) -> SolveError {
+    for (k, e) in graph.edges().enumerate() {
+        if !e.chi2(graph.values()).is_finite() {
+            return SolveError::NonFiniteChi2 {
+                edge: k,
+                name: e.name(),
+                vertices: e.vertices().iter().map(|&v| graph.vertex(v).id).collect(),
+            };
+        }
+    }
+    SolveError::NonFiniteChi2 { edge: usize::MAX, name: "?", vertices: vec![] }
+}
+
+/// Optimises `graph` with `config` (a one-shot [`Optimizer`]).
+pub fn optimize(graph: &mut Graph, config: SolverConfig) -> Result<Summary, SolveError> {
+    Optimizer::new(graph, config)?.optimize(graph)
+}

@@ -1,0 +1,221 @@
+//! The sparsity pattern of the Hessian H = JᵀΩJ, built once per graph, and the
+//! gather maps that assemble H and the gradient from the edges' slots.
+//!
+//! Each iteration the edges write their blocks into their own slots of one
+//! buffer (in parallel, see [`cairn_core::layout`]); every entry of H then sums
+//! its sources in a fixed order. No locks, and the same result for any number
+//! of threads.
+
+use crate::SolveError;
+use cairn_core::Graph;
+use cairn_core::layout;
+use faer::sparse::SymbolicSparseColMat;
+use rayon::prelude::*;
+
+/// Entries of H (or the gradient) summed per parallel work item.
+const GATHER_CHUNK: usize = 4096;
+
+/// A compressed list of source indices for each target entry.
+#[derive(Clone, Debug, Default)]
+struct Gather {
+    start: Vec<u32>,
+    source: Vec<u32>,
+}
+
+impl Gather {
+    fn from_pairs(targets: usize, mut pairs: Vec<(u32, u32)>) -> Self {
+        pairs.sort_unstable();
+        let mut start = vec![0u32; targets + 1];
+        for &(t, _) in &pairs {
+            start[t as usize + 1] += 1;
+        }
+        for t in 0..targets {
+            start[t + 1] += start[t];
+        }
+        Self { start, source: pairs.into_iter().map(|(_, s)| s).collect() }
+    }
+
+    fn apply(&self, buffer: &[f64], out: &mut [f64]) {
+        out.par_chunks_mut(GATHER_CHUNK).enumerate().for_each(|(c, chunk)| {
+            let base = c * GATHER_CHUNK;
+            for (k, v) in chunk.iter_mut().enumerate() {
+                let (a, b) = (self.start[base + k] as usize, self.start[base + k + 1] as usize);
+                *v = self.source[a..b].iter().map(|&s| buffer[s as usize]).sum();
+            }
+        });
+    }
+}
+
+/// The Hessian's fixed structure for one graph and one set of fixed vertices.
+#[derive(Debug)]
+pub struct HessianStructure {
+    /// First column of each vertex in H, `None` for fixed vertices.
+    pub column: Vec<Option<usize>>,
+    /// Dimension of H.
+    pub dim: usize,
+    /// Pattern of the upper triangle of H, columns sorted.
+    pub pattern: SymbolicSparseColMat<usize>,
+    /// Index into the values of each diagonal entry (for LM damping).
+    pub diagonal: Vec<usize>,
+    /// Start of each factor group's region in the linearisation buffer.
+    pub group_offset: Vec<usize>,
+    /// Length of the linearisation buffer.
+    pub buffer_len: usize,
+    hessian: Gather,
+    gradient: Gather,
+    chi2_slots: Vec<u32>,
+}
+
+impl HessianStructure {
+    /// Builds the structure; `fixed[v]` holds vertex index v constant.
+    pub fn new(graph: &Graph, fixed: &[bool]) -> Result<Self, SolveError> {
+        let n = graph.num_vertices();
+        let mut column = vec![None; n];
+        let mut dim = 0;
+        for v in graph.vertices() {
+            if !fixed[v.index] {
+                column[v.index] = Some(dim);
+                dim += v.kind.dim;
+            }
+        }
+        let vdim: Vec<usize> = graph.vertices().map(|v| v.kind.dim).collect();
+
+        // Block pattern: for each free vertex (a block column), the free vertices
+        // sharing an edge with it that come no later (block rows of the upper triangle).
+        let mut rows_of: Vec<Vec<usize>> = (0..n).map(|v| if column[v].is_some() { vec![v] } else { vec![] }).collect();
+        for g in graph.factor_groups() {
+            for i in 0..g.len() {
+                let vs = g.vertices(i);
+                for (p, &a) in vs.iter().enumerate() {
+                    for &b in &vs[p + 1..] {
+                        if let (Some(ca), Some(cb)) = (column[a], column[b]) {
+                            let (r, c) = if ca < cb { (a, b) } else { (b, a) };
+                            rows_of[c].push(r);
+                        }
+                    }
+                }
+            }
+        }
+        let mut col_ptr = Vec::with_capacity(dim + 1);
+        let mut row_idx = Vec::new();
+        // Offset, within each of a block column's scalar columns, of each block row.
+        let mut block_pos: Vec<Vec<(usize, usize)>> = vec![Vec::new(); n];
+        col_ptr.push(0usize);
+        let mut free: Vec<usize> = (0..n).filter(|&v| column[v].is_some()).collect();
+        free.sort_by_key(|&v| column[v]);
+        for &b in &free {
+            let rows = &mut rows_of[b];
+            rows.sort_unstable_by_key(|&r| column[r]);
+            rows.dedup();
+            let cb = column[b].unwrap_or(0);
+            let mut pos = 0;
+            for &r in rows.iter() {
+                block_pos[b].push((r, pos));
+                pos += vdim[r];
+            }
+            for j in 0..vdim[b] {
+                for &r in rows.iter() {
+                    let cr = column[r].unwrap_or(0);
+                    let height = if r == b { j + 1 } else { vdim[r] };
+                    row_idx.extend(cr..cr + height);
+                }
+                col_ptr.push(row_idx.len());
+                debug_assert_eq!(row_idx.len() - col_ptr[cb + j], pos - vdim[b] + j + 1);
+            }
+        }
+        if row_idx.len() >= u32::MAX as usize {
+            return Err(SolveError::TooLarge { entries: row_idx.len() });
+        }
+        let value_index = |r: usize, c: usize, i: usize, j: usize| -> usize {
+            // Entry (i, j) of block (r, c), r before or equal to c.
+            let cc = column[c].unwrap_or(0);
+            let pos = block_pos[c].iter().find(|&&(v, _)| v == r).map(|&(_, p)| p).unwrap_or(0);
+            col_ptr[cc + j] + pos + i
+        };
+        let diagonal: Vec<usize> = free
+            .iter()
+            .flat_map(|&v| (0..vdim[v]).map(move |j| (v, j)))
+            .map(|(v, j)| value_index(v, v, j, j))
+            .collect();
+
+        let mut group_offset = Vec::new();
+        let mut buffer_len = 0usize;
+        let mut h_pairs: Vec<(u32, u32)> = Vec::new();
+        let mut g_pairs: Vec<(u32, u32)> = Vec::new();
+        let mut chi2_slots = Vec::new();
+        for g in graph.factor_groups() {
+            group_offset.push(buffer_len);
+            let dims = g.vertex_dims();
+            let stride = layout::stride(dims);
+            for i in 0..g.len() {
+                let slot = buffer_len + i * stride;
+                let vs = g.vertices(i);
+                for p in 0..vs.len() {
+                    for q in p..vs.len() {
+                        let (a, b) = (vs[p], vs[q]);
+                        let (Some(ca), Some(cb)) = (column[a], column[b]) else { continue };
+                        let off = slot + layout::block_offset(dims, p, q);
+                        for j in 0..dims[q] {
+                            for i2 in 0..dims[p] {
+                                let src = (off + i2 + j * dims[p]) as u32;
+                                let dst = if p == q {
+                                    if i2 > j {
+                                        continue;
+                                    }
+                                    value_index(a, a, i2, j)
+                                } else if ca < cb {
+                                    value_index(a, b, i2, j)
+                                } else {
+                                    value_index(b, a, j, i2)
+                                };
+                                h_pairs.push((dst as u32, src));
+                            }
+                        }
+                    }
+                    if let Some(ca) = column[vs[p]] {
+                        let off = slot + layout::gradient_offset(dims, p);
+                        g_pairs.extend((0..dims[p]).map(|k| ((ca + k) as u32, (off + k) as u32)));
+                    }
+                }
+                chi2_slots.push((slot + stride - 1) as u32);
+            }
+            buffer_len += g.len() * stride;
+            if buffer_len >= u32::MAX as usize {
+                return Err(SolveError::TooLarge { entries: buffer_len });
+            }
+        }
+        let nnz = row_idx.len();
+        let pattern = SymbolicSparseColMat::new_checked(dim, dim, col_ptr, None, row_idx);
+        Ok(Self {
+            column,
+            dim,
+            pattern,
+            diagonal,
+            group_offset,
+            buffer_len,
+            hessian: Gather::from_pairs(nnz, h_pairs),
+            gradient: Gather::from_pairs(dim, g_pairs),
+            chi2_slots,
+        })
+    }
+
+    /// Number of stored entries of the upper triangle of H.
+    pub fn nnz(&self) -> usize {
+        self.pattern.row_idx().len()
+    }
+
+    /// Sums the edges' blocks into the values of H.
+    pub fn assemble_hessian(&self, buffer: &[f64], values: &mut [f64]) {
+        self.hessian.apply(buffer, values);
+    }
+
+    /// Sums the edges' JᵀΩe into the gradient.
+    pub fn assemble_gradient(&self, buffer: &[f64], gradient: &mut [f64]) {
+        self.gradient.apply(buffer, gradient);
+    }
+
+    /// Total χ² stored in the buffer by the last linearisation (deterministic order).
+    pub fn chi2(&self, buffer: &[f64]) -> f64 {
+        cairn_core::factor::deterministic_sum(self.chi2_slots.len(), |k| buffer[self.chi2_slots[k] as usize])
+    }
+}
