@@ -1,1 +1,24 @@
-//! placeholder
+//! Cairn: fast, g2o-compatible factor-graph optimisation in pure Rust.
+//!
+//! This facade re-exports the workspace's crates:
+//! - [`core`]: SE2/SE3, variables, edges and the factor graph;
+//! - [`solvers`]: Gauss-Newton and Levenberg-Marquardt over faer's sparse Cholesky;
+//! - [`g2o`]: the g2o file format;
+//! - [`generate`]: synthetic benchmark graphs.
+//!
+//! ```
+//! use cairn::g2o::{read_bytes, ReadOptions};
+//! use cairn::solvers::{optimize, SolverConfig};
+//!
+//! let text = cairn::g2o::to_string(&cairn::generate::manhattan(&Default::default())?)?;
+//! let (mut graph, _) = read_bytes(text.as_bytes(), &ReadOptions::default())?;
+//! let summary = optimize(&mut graph, SolverConfig::default())?;
+//! assert!(summary.final_chi2 < summary.initial_chi2);
+//! # Ok::<(), Box<dyn std::error::Error>>(())
+//! ```
+
+pub use cairn_core as core;
+pub use cairn_g2o as g2o;
+pub use cairn_solvers as solvers;
+
+pub mod generate;

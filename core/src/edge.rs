@@ -27,7 +27,9 @@ pub trait UnaryEdge<const E: usize, const D: usize>: Clone + Send + Sync + 'stat
 }
 
 /// An edge between two variables.
-pub trait BinaryEdge<const E: usize, const D1: usize, const D2: usize>: Clone + Send + Sync + 'static {
+pub trait BinaryEdge<const E: usize, const D1: usize, const D2: usize>:
+    Clone + Send + Sync + 'static
+{
     /// The first variable's type.
     type V1: Variable<D1>;
     /// The second variable's type.
@@ -39,7 +41,11 @@ pub trait BinaryEdge<const E: usize, const D1: usize, const D2: usize>: Clone + 
     fn error(&self, x1: &Self::V1, x2: &Self::V2) -> SVector<f64, E>;
 
     /// (∂e/∂δ1, ∂e/∂δ2) at δ = 0. Numeric central differences unless overridden.
-    fn jacobians(&self, x1: &Self::V1, x2: &Self::V2) -> (SMatrix<f64, E, D1>, SMatrix<f64, E, D2>) {
+    fn jacobians(
+        &self,
+        x1: &Self::V1,
+        x2: &Self::V2,
+    ) -> (SMatrix<f64, E, D1>, SMatrix<f64, E, D2>) {
         numeric_binary(self, x1, x2)
     }
 
@@ -93,5 +99,8 @@ pub fn numeric_binary<T, const E: usize, const D1: usize, const D2: usize>(
 where
     T: BinaryEdge<E, D1, D2> + ?Sized,
 {
-    (numeric_jacobian(x1, |v| edge.error(v, x2)), numeric_jacobian(x2, |v| edge.error(x1, v)))
+    (
+        numeric_jacobian(x1, |v| edge.error(v, x2)),
+        numeric_jacobian(x2, |v| edge.error(x1, v)),
+    )
 }

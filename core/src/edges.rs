@@ -23,7 +23,10 @@ pub struct EdgeSE2 {
 impl EdgeSE2 {
     /// An edge measuring the pose of j in the frame of i.
     pub fn new(measurement: SE2) -> Self {
-        Self { measurement, inverse: measurement.inverse() }
+        Self {
+            measurement,
+            inverse: measurement.inverse(),
+        }
     }
     /// The measured relative pose Z.
     pub fn measurement(&self) -> &SE2 {
@@ -95,7 +98,8 @@ impl BinaryEdge<2, 3, 2> for EdgeSE2XY {
         let rt = x.rotation().transpose();
         let mut jx = SMatrix::<f64, 2, 3>::zeros();
         jx.fixed_view_mut::<2, 2>(0, 0).copy_from(&(-rt));
-        jx.fixed_view_mut::<2, 1>(0, 2).copy_from(&(d_rotation_transpose(x.theta) * (l - x.t)));
+        jx.fixed_view_mut::<2, 1>(0, 2)
+            .copy_from(&(d_rotation_transpose(x.theta) * (l - x.t)));
         (jx, rt)
     }
 
@@ -114,7 +118,10 @@ pub struct EdgePriorSE2 {
 impl EdgePriorSE2 {
     /// A prior pulling the pose towards `measurement`.
     pub fn new(measurement: SE2) -> Self {
-        Self { measurement, inverse: measurement.inverse() }
+        Self {
+            measurement,
+            inverse: measurement.inverse(),
+        }
     }
     /// The prior mean Z.
     pub fn measurement(&self) -> &SE2 {
@@ -132,7 +139,8 @@ impl UnaryEdge<3, 3> for EdgePriorSE2 {
 
     fn jacobian(&self, _x: &SE2) -> Matrix3<f64> {
         let mut j = Matrix3::identity();
-        j.fixed_view_mut::<2, 2>(0, 0).copy_from(&self.measurement.rotation().transpose());
+        j.fixed_view_mut::<2, 2>(0, 0)
+            .copy_from(&self.measurement.rotation().transpose());
         j
     }
 }
@@ -148,7 +156,10 @@ pub struct EdgeSE3 {
 impl EdgeSE3 {
     /// An edge measuring the pose of j in the frame of i.
     pub fn new(measurement: SE3) -> Self {
-        Self { measurement, inverse: measurement.inverse() }
+        Self {
+            measurement,
+            inverse: measurement.inverse(),
+        }
     }
     /// The measured relative pose Z.
     pub fn measurement(&self) -> &SE3 {
@@ -176,12 +187,14 @@ impl BinaryEdge<6, 6, 6> for EdgeSE3 {
         let mut jj = Matrix6::zeros();
         jj.fixed_view_mut::<3, 3>(0, 0).copy_from(&e.rotation());
         let v = Vector3::new(q.i, q.j, q.k);
-        jj.fixed_view_mut::<3, 3>(3, 3).copy_from(&(Matrix3::identity() * q.w + skew(&v)));
+        jj.fixed_view_mut::<3, 3>(3, 3)
+            .copy_from(&(Matrix3::identity() * q.w + skew(&v)));
 
         let rbt = b.rotation().transpose();
         let mut m = Matrix6::zeros();
         m.fixed_view_mut::<3, 3>(0, 0).copy_from(&(-rbt));
-        m.fixed_view_mut::<3, 3>(0, 3).copy_from(&(rbt * skew(&b.t) * 2.0));
+        m.fixed_view_mut::<3, 3>(0, 3)
+            .copy_from(&(rbt * skew(&b.t) * 2.0));
         m.fixed_view_mut::<3, 3>(3, 3).copy_from(&(-rbt));
         (jj * m, jj)
     }
@@ -193,4 +206,3 @@ impl BinaryEdge<6, 6, 6> for EdgeSE3 {
         Some(xj.compose(&self.inverse))
     }
 }
-

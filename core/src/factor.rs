@@ -78,11 +78,18 @@ pub struct UnaryGroup<T, const E: usize, const D: usize> {
 impl<T: UnaryEdge<E, D>, const E: usize, const D: usize> UnaryGroup<T, E, D> {
     /// An empty group.
     pub fn new() -> Self {
-        Self { entries: Vec::new(), dims: [D] }
+        Self {
+            entries: Vec::new(),
+            dims: [D],
+        }
     }
     /// Appends an edge (vertex index and information already checked).
     pub fn push(&mut self, edge: T, vertex: usize, information: SMatrix<f64, E, E>) -> usize {
-        self.entries.push(Entry { edge, vertices: [vertex], information });
+        self.entries.push(Entry {
+            edge,
+            vertices: [vertex],
+            information,
+        });
         self.entries.len() - 1
     }
     fn eval(&self, i: usize, values: &Values) -> (T::V, SVector<f64, E>) {
@@ -134,16 +141,18 @@ impl<T: UnaryEdge<E, D>, const E: usize, const D: usize> FactorGroup for UnaryGr
     fn linearize(&self, values: &Values, out: &mut [f64]) {
         let stride = layout::stride(&self.dims);
         let g0 = layout::gradient_offset(&self.dims, 0);
-        out.par_chunks_mut(stride).zip(self.entries.par_iter()).with_min_len(CHUNK).enumerate().for_each(
-            |(i, (slot, en))| {
+        out.par_chunks_mut(stride)
+            .zip(self.entries.par_iter())
+            .with_min_len(CHUNK)
+            .enumerate()
+            .for_each(|(i, (slot, en))| {
                 let (x, e) = self.eval(i, values);
                 let j = en.edge.jacobian(&x);
                 let oj = en.information * j;
                 slot[..D * D].copy_from_slice((j.transpose() * oj).as_slice());
                 slot[g0..g0 + D].copy_from_slice((oj.transpose() * e).as_slice());
                 slot[stride - 1] = e.dot(&(en.information * e));
-            },
-        );
+            });
     }
     fn propagate(&self, _i: usize, _known: usize, _values: &mut Values) -> Option<usize> {
         None
@@ -159,14 +168,28 @@ pub struct BinaryGroup<T, const E: usize, const D1: usize, const D2: usize> {
     dims: [usize; 2],
 }
 
-impl<T: BinaryEdge<E, D1, D2>, const E: usize, const D1: usize, const D2: usize> BinaryGroup<T, E, D1, D2> {
+impl<T: BinaryEdge<E, D1, D2>, const E: usize, const D1: usize, const D2: usize>
+    BinaryGroup<T, E, D1, D2>
+{
     /// An empty group.
     pub fn new() -> Self {
-        Self { entries: Vec::new(), dims: [D1, D2] }
+        Self {
+            entries: Vec::new(),
+            dims: [D1, D2],
+        }
     }
     /// Appends an edge (vertex indices and information already checked).
-    pub fn push(&mut self, edge: T, vertices: [usize; 2], information: SMatrix<f64, E, E>) -> usize {
-        self.entries.push(Entry { edge, vertices, information });
+    pub fn push(
+        &mut self,
+        edge: T,
+        vertices: [usize; 2],
+        information: SMatrix<f64, E, E>,
+    ) -> usize {
+        self.entries.push(Entry {
+            edge,
+            vertices,
+            information,
+        });
         self.entries.len() - 1
     }
     fn eval(&self, i: usize, values: &Values) -> (T::V1, T::V2, SVector<f64, E>) {
@@ -225,8 +248,11 @@ impl<T: BinaryEdge<E, D1, D2>, const E: usize, const D1: usize, const D2: usize>
         let (o12, o22) = (D1 * D1, D1 * D1 + D1 * D2);
         let g1 = layout::gradient_offset(&self.dims, 0);
         let g2 = g1 + D1;
-        out.par_chunks_mut(stride).zip(self.entries.par_iter()).with_min_len(CHUNK).enumerate().for_each(
-            |(i, (slot, en))| {
+        out.par_chunks_mut(stride)
+            .zip(self.entries.par_iter())
+            .with_min_len(CHUNK)
+            .enumerate()
+            .for_each(|(i, (slot, en))| {
                 let (x1, x2, e) = self.eval(i, values);
                 let (j1, j2) = en.edge.jacobians(&x1, &x2);
                 let oj1 = en.information * j1;
@@ -237,8 +263,7 @@ impl<T: BinaryEdge<E, D1, D2>, const E: usize, const D1: usize, const D2: usize>
                 slot[g1..g2].copy_from_slice((oj1.transpose() * e).as_slice());
                 slot[g2..g2 + D2].copy_from_slice((oj2.transpose() * e).as_slice());
                 slot[stride - 1] = e.dot(&(en.information * e));
-            },
-        );
+            });
     }
     fn propagate(&self, i: usize, known: usize, values: &mut Values) -> Option<usize> {
         let en = &self.entries[i];

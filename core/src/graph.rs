@@ -182,7 +182,11 @@ impl Graph {
     }
 
     /// Adds a variable with the given id; returns its index.
-    pub fn add_vertex<V: Variable<D>, const D: usize>(&mut self, id: VertexId, value: V) -> Result<usize, GraphError> {
+    pub fn add_vertex<V: Variable<D>, const D: usize>(
+        &mut self,
+        id: VertexId,
+        value: V,
+    ) -> Result<usize, GraphError> {
         if self.index.contains_key(&id) {
             return Err(GraphError::DuplicateVertex(id));
         }
@@ -193,7 +197,11 @@ impl Graph {
         }
         let kind = self.kind_index(VariableKind::of::<V, D>());
         let index = self.values.push(&value);
-        self.vertices.push(VertexRecord { id, kind, fixed: false });
+        self.vertices.push(VertexRecord {
+            id,
+            kind,
+            fixed: false,
+        });
         self.index.insert(id, index);
         Ok(index)
     }
@@ -217,12 +225,22 @@ impl Graph {
         self.vertex_index(id).ok_or(GraphError::UnknownVertex(id))
     }
 
-    fn check_type<V: 'static>(&self, index: usize, context: &'static str, expected: &'static str) -> Result<(), GraphError> {
+    fn check_type<V: 'static>(
+        &self,
+        index: usize,
+        context: &'static str,
+        expected: &'static str,
+    ) -> Result<(), GraphError> {
         let kind = &self.kinds[self.vertices[index].kind as usize];
         if kind.type_id == TypeId::of::<V>() {
             Ok(())
         } else {
-            Err(GraphError::WrongVertexType { id: self.vertices[index].id, context, expected, actual: kind.name })
+            Err(GraphError::WrongVertexType {
+                id: self.vertices[index].id,
+                context,
+                expected,
+                actual: kind.name,
+            })
         }
     }
 
@@ -234,7 +252,11 @@ impl Graph {
     }
 
     /// Sets the value of vertex `id`.
-    pub fn set_value<V: Variable<D>, const D: usize>(&mut self, id: VertexId, value: &V) -> Result<(), GraphError> {
+    pub fn set_value<V: Variable<D>, const D: usize>(
+        &mut self,
+        id: VertexId,
+        value: &V,
+    ) -> Result<(), GraphError> {
         let i = self.checked_index(id)?;
         self.check_type::<V>(i, "the caller", V::NAME)?;
         self.values.set(i, value);
@@ -274,7 +296,10 @@ impl Graph {
         self.check_type::<T::V1>(a, T::NAME, <T::V1 as Variable<D1>>::NAME)?;
         self.check_type::<T::V2>(b, T::NAME, <T::V2 as Variable<D2>>::NAME)?;
         if a == b {
-            return Err(GraphError::SelfLoop { edge: T::NAME, id: from });
+            return Err(GraphError::SelfLoop {
+                edge: T::NAME,
+                id: from,
+            });
         }
         check_information(&information).map_err(|issue| GraphError::BadInformation {
             edge: T::NAME,
@@ -282,8 +307,12 @@ impl Graph {
             issue,
         })?;
         let g = self.group_index::<T>(|| Box::new(BinaryGroup::<T, E, D1, D2>::new()));
-        let group = self.groups[g].as_any_mut().downcast_mut::<BinaryGroup<T, E, D1, D2>>();
-        let k = group.map(|grp| grp.push(edge, [a, b], information)).unwrap_or_else(|| unreachable!());
+        let group = self.groups[g]
+            .as_any_mut()
+            .downcast_mut::<BinaryGroup<T, E, D1, D2>>();
+        let k = group
+            .map(|grp| grp.push(edge, [a, b], information))
+            .unwrap_or_else(|| unreachable!());
         Ok(self.record_edge(g, k))
     }
 
@@ -305,8 +334,12 @@ impl Graph {
             issue,
         })?;
         let g = self.group_index::<T>(|| Box::new(UnaryGroup::<T, E, D>::new()));
-        let group = self.groups[g].as_any_mut().downcast_mut::<UnaryGroup<T, E, D>>();
-        let k = group.map(|grp| grp.push(edge, a, information)).unwrap_or_else(|| unreachable!());
+        let group = self.groups[g]
+            .as_any_mut()
+            .downcast_mut::<UnaryGroup<T, E, D>>();
+        let k = group
+            .map(|grp| grp.push(edge, a, information))
+            .unwrap_or_else(|| unreachable!());
         Ok(self.record_edge(g, k))
     }
 
@@ -352,7 +385,10 @@ impl Graph {
     /// Edge number `k` (insertion order).
     pub fn edge(&self, k: usize) -> EdgeView<'_> {
         let (g, i) = self.edge_order[k];
-        EdgeView { group: self.groups[g as usize].as_ref(), index: i as usize }
+        EdgeView {
+            group: self.groups[g as usize].as_ref(),
+            index: i as usize,
+        }
     }
 
     /// All edges, in insertion order.

@@ -13,7 +13,9 @@ pub enum InformationIssue {
     Asymmetric,
     /// Not positive definite: χ² = eᵀΩe would not be bounded below or would
     /// ignore a direction.
-    #[error("is not positive definite (smallest eigenvalue {min_eigenvalue:e}, largest {max_eigenvalue:e})")]
+    #[error(
+        "is not positive definite (smallest eigenvalue {min_eigenvalue:e}, largest {max_eigenvalue:e})"
+    )]
     NotPositiveDefinite {
         /// Smallest eigenvalue.
         min_eigenvalue: f64,
@@ -36,7 +38,10 @@ pub fn check_information<const E: usize>(m: &SMatrix<f64, E, E>) -> Result<(), I
     if min > 0.0 {
         Ok(())
     } else {
-        Err(InformationIssue::NotPositiveDefinite { min_eigenvalue: min, max_eigenvalue: max })
+        Err(InformationIssue::NotPositiveDefinite {
+            min_eigenvalue: min,
+            max_eigenvalue: max,
+        })
     }
 }
 
@@ -50,7 +55,11 @@ pub fn nearest_positive_definite<const E: usize>(m: &SMatrix<f64, E, E>) -> SMat
     let sym = (m + m.transpose()) * 0.5;
     let eig = DMatrix::from_column_slice(E, E, sym.as_slice()).symmetric_eigen();
     let largest = eig.eigenvalues.amax();
-    let floor = if largest > 0.0 { EIGENVALUE_FLOOR * largest } else { 1.0 };
+    let floor = if largest > 0.0 {
+        EIGENVALUE_FLOOR * largest
+    } else {
+        1.0
+    };
     let clamped = eig.eigenvalues.map(|l| l.max(floor));
     let fixed = &eig.eigenvectors * DMatrix::from_diagonal(&clamped) * eig.eigenvectors.transpose();
     let fixed = (&fixed + fixed.transpose()) * 0.5;

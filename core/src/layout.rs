@@ -23,7 +23,9 @@ pub fn block_offset(dims: &[usize], a: usize, b: usize) -> usize {
 /// Offset of vertex `a`'s gradient segment JₐᵀΩe.
 pub fn gradient_offset(dims: &[usize], a: usize) -> usize {
     let n = dims.len();
-    let hess: usize = (0..n).map(|i| (i..n).map(|j| dims[i] * dims[j]).sum::<usize>()).sum();
+    let hess: usize = (0..n)
+        .map(|i| (i..n).map(|j| dims[i] * dims[j]).sum::<usize>())
+        .sum();
     hess + dims[..a].iter().sum::<usize>()
 }
 

@@ -10,7 +10,11 @@ pub fn normalize_angle(theta: f64) -> f64 {
     }
     let wrapped = (theta + PI).rem_euclid(2.0 * PI) - PI;
     // rem_euclid maps onto [−π, π); move the lower end to the upper one.
-    if wrapped <= -PI { wrapped + 2.0 * PI } else { wrapped }
+    if wrapped <= -PI {
+        wrapped + 2.0 * PI
+    } else {
+        wrapped
+    }
 }
 
 /// Rotation matrix of angle `theta`.
@@ -31,7 +35,10 @@ pub struct SE2 {
 impl SE2 {
     /// A pose from its coordinates; the angle is wrapped to (−π, π].
     pub fn new(x: f64, y: f64, theta: f64) -> Self {
-        Self { t: Vector2::new(x, y), theta: normalize_angle(theta) }
+        Self {
+            t: Vector2::new(x, y),
+            theta: normalize_angle(theta),
+        }
     }
 
     /// The identity pose.
@@ -56,18 +63,27 @@ impl SE2 {
 
     /// Group composition `self · other`.
     pub fn compose(&self, other: &SE2) -> SE2 {
-        SE2 { t: self.t + self.rotation() * other.t, theta: normalize_angle(self.theta + other.theta) }
+        SE2 {
+            t: self.t + self.rotation() * other.t,
+            theta: normalize_angle(self.theta + other.theta),
+        }
     }
 
     /// Group inverse.
     pub fn inverse(&self) -> SE2 {
-        SE2 { t: -(self.rotation().transpose() * self.t), theta: normalize_angle(-self.theta) }
+        SE2 {
+            t: -(self.rotation().transpose() * self.t),
+            theta: normalize_angle(-self.theta),
+        }
     }
 
     /// `self⁻¹ · other`, computed without forming the inverse.
     pub fn between(&self, other: &SE2) -> SE2 {
         let rt = self.rotation().transpose();
-        SE2 { t: rt * (other.t - self.t), theta: normalize_angle(other.theta - self.theta) }
+        SE2 {
+            t: rt * (other.t - self.t),
+            theta: normalize_angle(other.theta - self.theta),
+        }
     }
 
     /// Applies the pose to a point.

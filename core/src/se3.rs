@@ -26,24 +26,36 @@ impl SE3 {
 
     /// The identity pose.
     pub fn identity() -> Self {
-        Self { t: Vector3::zeros(), q: UnitQuaternion::identity() }
+        Self {
+            t: Vector3::zeros(),
+            q: UnitQuaternion::identity(),
+        }
     }
 
     /// Group composition `self · other`.
     pub fn compose(&self, other: &SE3) -> SE3 {
-        SE3 { t: self.t + self.q * other.t, q: self.q * other.q }
+        SE3 {
+            t: self.t + self.q * other.t,
+            q: self.q * other.q,
+        }
     }
 
     /// Group inverse.
     pub fn inverse(&self) -> SE3 {
         let qi = self.q.inverse();
-        SE3 { t: -(qi * self.t), q: qi }
+        SE3 {
+            t: -(qi * self.t),
+            q: qi,
+        }
     }
 
     /// `self⁻¹ · other`.
     pub fn between(&self, other: &SE3) -> SE3 {
         let qi = self.q.inverse();
-        SE3 { t: qi * (other.t - self.t), q: qi * other.q }
+        SE3 {
+            t: qi * (other.t - self.t),
+            q: qi * other.q,
+        }
     }
 
     /// Rotation matrix.
@@ -66,7 +78,10 @@ impl SE3 {
     /// g2o's `fromVectorMQT`: the inverse of [`SE3::to_mqt`] (see
     /// [`quaternion_from_vector`] for vector parts of norm above one).
     pub fn from_mqt(v: &Vector6<f64>) -> SE3 {
-        SE3 { t: Vector3::new(v[0], v[1], v[2]), q: quaternion_from_vector(&Vector3::new(v[3], v[4], v[5])) }
+        SE3 {
+            t: Vector3::new(v[0], v[1], v[2]),
+            q: quaternion_from_vector(&Vector3::new(v[3], v[4], v[5])),
+        }
     }
 }
 

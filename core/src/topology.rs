@@ -52,7 +52,10 @@ impl Adjacency {
                 }
             }
         }
-        Self { start: count, items }
+        Self {
+            start: count,
+            items,
+        }
     }
 
     fn of(&self, v: usize) -> &[(u32, u32, u8)] {
@@ -117,8 +120,10 @@ impl Graph {
                 best[c] = Some(key);
             }
         }
-        let mut out: Vec<usize> =
-            (0..comps.count).filter(|&c| !anchored[c]).filter_map(|c| best[c].map(|b| b.2)).collect();
+        let mut out: Vec<usize> = (0..comps.count)
+            .filter(|&c| !anchored[c])
+            .filter_map(|c| best[c].map(|b| b.2))
+            .collect();
         out.sort_unstable();
         out
     }
@@ -164,7 +169,10 @@ impl Graph {
                 None => break,
             }
         }
-        report.roots = root_indices.into_iter().map(|v| self.vertex(v).id).collect();
+        report.roots = root_indices
+            .into_iter()
+            .map(|v| self.vertex(v).id)
+            .collect();
         report
     }
 }

@@ -46,13 +46,21 @@ impl Values {
 
     /// The parameters of the variable at `index`.
     pub fn params_of(&self, index: usize) -> &[f64] {
-        let end = self.offsets.get(index + 1).copied().unwrap_or(self.params.len());
+        let end = self
+            .offsets
+            .get(index + 1)
+            .copied()
+            .unwrap_or(self.params.len());
         &self.params[self.offsets[index]..end]
     }
 
     /// Mutable parameters of the variable at `index`.
     pub fn params_of_mut(&mut self, index: usize) -> &mut [f64] {
-        let end = self.offsets.get(index + 1).copied().unwrap_or(self.params.len());
+        let end = self
+            .offsets
+            .get(index + 1)
+            .copied()
+            .unwrap_or(self.params.len());
         &mut self.params[self.offsets[index]..end]
     }
 

@@ -16,7 +16,9 @@ use nalgebra::{Quaternion, SVector, UnitQuaternion, Vector2, Vector3};
 /// let x = SE2::new(1.0, 2.0, 0.5).oplus(&Vector3::new(0.1, 0.0, 0.0));
 /// assert_eq!(x.t.x, 1.1); // SE2 updates are additive, as in g2o
 /// ```
-pub trait Variable<const D: usize>: Clone + Default + std::fmt::Debug + Send + Sync + 'static {
+pub trait Variable<const D: usize>:
+    Clone + Default + std::fmt::Debug + Send + Sync + 'static
+{
     /// Number of stored parameters.
     const PARAMS: usize;
     /// Name for messages (g2o tag style, e.g. `"SE2"`).
@@ -90,7 +92,10 @@ impl Variable<6> for SE3 {
     }
     /// Right-multiplies by the increment (t, qx, qy, qz), g2o's `VertexSE3::oplusImpl`.
     fn oplus(&self, d: &SVector<f64, 6>) -> Self {
-        let inc = SE3::new(Vector3::new(d[0], d[1], d[2]), quaternion_from_vector(&Vector3::new(d[3], d[4], d[5])));
+        let inc = SE3::new(
+            Vector3::new(d[0], d[1], d[2]),
+            quaternion_from_vector(&Vector3::new(d[3], d[4], d[5])),
+        );
         let mut x = self.compose(&inc);
         x.q.renormalize_fast();
         x

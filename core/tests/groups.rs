@@ -30,7 +30,9 @@ impl Group for SE2 {
         SE2::identity()
     }
     fn distance(&self, o: &Self) -> f64 {
-        (self.t - o.t).amax().max(normalize_angle(self.theta - o.theta).abs())
+        (self.t - o.t)
+            .amax()
+            .max(normalize_angle(self.theta - o.theta).abs())
     }
 }
 
@@ -54,23 +56,62 @@ impl Group for SE3 {
 
 fn check_axioms<G: Group>(a: G, b: G, c: G) {
     let tol = 1e-9;
-    assert!(a.compose(&b).compose(&c).distance(&a.compose(&b.compose(&c))) < tol, "associativity");
-    assert!(a.compose(&G::identity()).distance(&a) < tol, "right identity");
-    assert!(G::identity().compose(&a).distance(&a) < tol, "left identity");
-    assert!(a.compose(&a.inverse()).distance(&G::identity()) < tol, "inverse");
+    assert!(
+        a.compose(&b)
+            .compose(&c)
+            .distance(&a.compose(&b.compose(&c)))
+            < tol,
+        "associativity"
+    );
+    assert!(
+        a.compose(&G::identity()).distance(&a) < tol,
+        "right identity"
+    );
+    assert!(
+        G::identity().compose(&a).distance(&a) < tol,
+        "left identity"
+    );
+    assert!(
+        a.compose(&a.inverse()).distance(&G::identity()) < tol,
+        "inverse"
+    );
     assert!(a.inverse().inverse().distance(&a) < tol, "double inverse");
-    assert!(a.between(&b).distance(&a.inverse().compose(&b)) < tol, "between");
-    assert!(a.compose(&b).inverse().distance(&b.inverse().compose(&a.inverse())) < tol, "inverse of product");
+    assert!(
+        a.between(&b).distance(&a.inverse().compose(&b)) < tol,
+        "between"
+    );
+    assert!(
+        a.compose(&b)
+            .inverse()
+            .distance(&b.inverse().compose(&a.inverse()))
+            < tol,
+        "inverse of product"
+    );
 }
 
 fn se2(rng: &mut StdRng) -> SE2 {
-    SE2::new(rng.random_range(-50.0..50.0), rng.random_range(-50.0..50.0), rng.random_range(-PI..PI))
+    SE2::new(
+        rng.random_range(-50.0..50.0),
+        rng.random_range(-50.0..50.0),
+        rng.random_range(-PI..PI),
+    )
 }
 
 fn se3(rng: &mut StdRng) -> SE3 {
-    let axis = Vector3::new(rng.random_range(-1.0..1.0), rng.random_range(-1.0..1.0), rng.random_range(-1.0..1.0));
-    let t = Vector3::new(rng.random_range(-50.0..50.0), rng.random_range(-50.0..50.0), rng.random_range(-50.0..50.0));
-    SE3::new(t, UnitQuaternion::from_scaled_axis(axis * rng.random_range(0.0..3.1)))
+    let axis = Vector3::new(
+        rng.random_range(-1.0..1.0),
+        rng.random_range(-1.0..1.0),
+        rng.random_range(-1.0..1.0),
+    );
+    let t = Vector3::new(
+        rng.random_range(-50.0..50.0),
+        rng.random_range(-50.0..50.0),
+        rng.random_range(-50.0..50.0),
+    );
+    SE3::new(
+        t,
+        UnitQuaternion::from_scaled_axis(axis * rng.random_range(0.0..3.1)),
+    )
 }
 
 #[test]

@@ -11,16 +11,35 @@ use rand::{Rng, SeedableRng};
 const STATES: usize = 1000;
 
 fn se2(rng: &mut StdRng) -> SE2 {
-    SE2::new(rng.random_range(-20.0..20.0), rng.random_range(-20.0..20.0), rng.random_range(-3.14..3.14))
+    SE2::new(
+        rng.random_range(-20.0..20.0),
+        rng.random_range(-20.0..20.0),
+        rng.random_range(-3.14..3.14),
+    )
 }
 
 fn se3(rng: &mut StdRng) -> SE3 {
-    let axis = Vector3::new(rng.random_range(-1.0..1.0), rng.random_range(-1.0..1.0), rng.random_range(-1.0..1.0));
-    let t = Vector3::new(rng.random_range(-10.0..10.0), rng.random_range(-10.0..10.0), rng.random_range(-10.0..10.0));
-    SE3::new(t, UnitQuaternion::from_scaled_axis(axis * rng.random_range(0.0..3.0)))
+    let axis = Vector3::new(
+        rng.random_range(-1.0..1.0),
+        rng.random_range(-1.0..1.0),
+        rng.random_range(-1.0..1.0),
+    );
+    let t = Vector3::new(
+        rng.random_range(-10.0..10.0),
+        rng.random_range(-10.0..10.0),
+        rng.random_range(-10.0..10.0),
+    );
+    SE3::new(
+        t,
+        UnitQuaternion::from_scaled_axis(axis * rng.random_range(0.0..3.0)),
+    )
 }
 
-fn assert_close<const R: usize, const C: usize>(analytic: &SMatrix<f64, R, C>, numeric: &SMatrix<f64, R, C>, what: &str) {
+fn assert_close<const R: usize, const C: usize>(
+    analytic: &SMatrix<f64, R, C>,
+    numeric: &SMatrix<f64, R, C>,
+    what: &str,
+) {
     let scale = 1.0f64.max(numeric.amax());
     let diff = (analytic - numeric).amax();
     assert!(
@@ -31,8 +50,11 @@ fn assert_close<const R: usize, const C: usize>(analytic: &SMatrix<f64, R, C>, n
     );
 }
 
-fn check_binary<T, const E: usize, const D1: usize, const D2: usize>(edge: &T, x1: &T::V1, x2: &T::V2)
-where
+fn check_binary<T, const E: usize, const D1: usize, const D2: usize>(
+    edge: &T,
+    x1: &T::V1,
+    x2: &T::V2,
+) where
     T: BinaryEdge<E, D1, D2>,
 {
     let (a1, a2) = edge.jacobians(x1, x2);
@@ -65,7 +87,11 @@ fn edge_prior_se2_jacobian() {
     for _ in 0..STATES {
         let edge = EdgePriorSE2::new(se2(&mut rng));
         let x = se2(&mut rng);
-        assert_close(&edge.jacobian(&x), &numeric_unary(&edge, &x), "EDGE_PRIOR_SE2");
+        assert_close(
+            &edge.jacobian(&x),
+            &numeric_unary(&edge, &x),
+            "EDGE_PRIOR_SE2",
+        );
     }
 }
 
@@ -94,7 +120,9 @@ fn edge_se3_jacobians_near_the_optimum() {
         let z = se3(&mut rng);
         let noise = SE3::new(
             Vector3::new(1e-3, -2e-3, 5e-4) * rng.random_range(-1.0..1.0),
-            quaternion_from_vector(&(Vector3::new(1e-3, 2e-3, -1e-3) * rng.random_range(-1.0..1.0))),
+            quaternion_from_vector(
+                &(Vector3::new(1e-3, 2e-3, -1e-3) * rng.random_range(-1.0..1.0)),
+            ),
         );
         let xj = xi.compose(&z).compose(&noise);
         check_binary(&EdgeSE3::new(z), &xi, &xj);

@@ -31,9 +31,12 @@ pub mod optimizer;
 pub mod structure;
 
 pub use config::{
-    Algorithm, IterationStats, LevenbergMarquardtConfig, PhaseTimes, SolverConfig, Summary, Termination,
+    Algorithm, IterationStats, LevenbergMarquardtConfig, PhaseTimes, SolverConfig, Summary,
+    Termination,
 };
-pub use linear::{Factorization, LinearSolverConfig, NotPositiveDefinite, Ordering, SparseCholesky};
+pub use linear::{
+    Factorization, LinearSolverConfig, NotPositiveDefinite, Ordering, SparseCholesky,
+};
 pub use optimizer::{Optimizer, optimize};
 pub use structure::HessianStructure;
 
@@ -44,7 +47,9 @@ pub enum SolveError {
     #[error("the graph changed since the optimizer was built; build a new one")]
     GraphChanged,
     /// χ² is NaN or infinite at the initial estimate.
-    #[error("χ² is not finite at the initial estimate: {name} edge #{edge} on vertices {vertices:?}")]
+    #[error(
+        "χ² is not finite at the initial estimate: {name} edge #{edge} on vertices {vertices:?}"
+    )]
     NonFiniteChi2 {
         /// Edge number (insertion order).
         edge: usize,

@@ -6,7 +6,8 @@ use faer::dyn_stack::{MemBuffer, MemStack, StackReq};
 use faer::linalg::cholesky::llt::factor::{LltError, LltRegularization};
 use faer::sparse::linalg::SupernodalThreshold;
 use faer::sparse::linalg::cholesky::{
-    CholeskySymbolicParams, LltRef, SymbolicCholesky, SymmetricOrdering, factorize_symbolic_cholesky,
+    CholeskySymbolicParams, LltRef, SymbolicCholesky, SymmetricOrdering,
+    factorize_symbolic_cholesky,
 };
 use faer::sparse::{SparseColMatRef, SymbolicSparseColMatRef};
 use faer::{Conj, MatMut, Par, Side};
@@ -65,13 +66,18 @@ pub struct SparseCholesky {
 
 impl std::fmt::Debug for SparseCholesky {
     fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
-        f.debug_struct("SparseCholesky").field("factor_len", &self.factor.len()).finish()
+        f.debug_struct("SparseCholesky")
+            .field("factor_len", &self.factor.len())
+            .finish()
     }
 }
 
 impl SparseCholesky {
     /// Symbolic analysis (ordering and elimination structure) of the upper triangle.
-    pub fn analyze(pattern: SymbolicSparseColMatRef<'_, usize>, config: &LinearSolverConfig) -> Result<Self, SolveError> {
+    pub fn analyze(
+        pattern: SymbolicSparseColMatRef<'_, usize>,
+        config: &LinearSolverConfig,
+    ) -> Result<Self, SolveError> {
         let threshold = match config.factorization {
             Factorization::Auto => SupernodalThreshold::AUTO,
             Factorization::Simplicial => SupernodalThreshold::FORCE_SIMPLICIAL,
@@ -81,22 +87,38 @@ impl SparseCholesky {
             Ordering::Amd => SymmetricOrdering::Amd,
             Ordering::Identity => SymmetricOrdering::Identity,
         };
-        let params = CholeskySymbolicParams { supernodal_flop_ratio_threshold: threshold, ..Default::default() };
+        let params = CholeskySymbolicParams {
+            supernodal_flop_ratio_threshold: threshold,
+            ..Default::default()
+        };
         let symbolic = factorize_symbolic_cholesky(pattern, Side::Upper, ordering, params)
             .map_err(|e| SolveError::Analysis(format!("{e:?}")))?;
-        let par = if config.parallel { Par::rayon(0) } else { Par::Seq };
+        let par = if config.parallel {
+            Par::rayon(0)
+        } else {
+            Par::Seq
+        };
         let req = StackReq::any_of(&[
             symbolic.factorize_numeric_llt_scratch::<f64>(par, Default::default()),
             symbolic.solve_in_place_scratch::<f64>(1, par),
         ]);
         let scratch = MemBuffer::try_new(req).map_err(|_| SolveError::OutOfMemory)?;
         let factor = vec![0.0; symbolic.len_val()];
-        Ok(Self { symbolic, factor, scratch, par, factored: false })
+        Ok(Self {
+            symbolic,
+            factor,
+            scratch,
+            par,
+            factored: false,
+        })
     }
 
     /// Whether the factor is supernodal.
     pub fn is_supernodal(&self) -> bool {
-        matches!(self.symbolic.raw(), faer::sparse::linalg::cholesky::SymbolicCholeskyRaw::Supernodal(_))
+        matches!(
+            self.symbolic.raw(),
+            faer::sparse::linalg::cholesky::SymbolicCholeskyRaw::Supernodal(_)
+        )
     }
 
     /// Number of stored values of the factor L.
@@ -113,7 +135,10 @@ impl SparseCholesky {
         self.factored = false;
         let h = SparseColMatRef::new(pattern, values);
         let stack = MemStack::new(&mut self.scratch);
-        let regularization = LltRegularization { dynamic_regularization_delta: 0.0, dynamic_regularization_epsilon: 0.0 };
+        let regularization = LltRegularization {
+            dynamic_regularization_delta: 0.0,
+            dynamic_regularization_epsilon: 0.0,
+        };
         match self.symbolic.factorize_numeric_llt(
             &mut self.factor,
             h,

@@ -1,9 +1,9 @@
 //! Gauss-Newton and Levenberg-Marquardt over the fixed Hessian structure.
 
+use crate::SolveError;
 use crate::config::{Algorithm, IterationStats, PhaseTimes, SolverConfig, Summary, Termination};
 use crate::linear::SparseCholesky;
 use crate::structure::HessianStructure;
-use crate::SolveError;
 use cairn_core::{Graph, VertexId};
 use std::time::Instant;
 
@@ -65,13 +65,18 @@ impl Optimizer {
     pub fn new(graph: &Graph, config: SolverConfig) -> Result<Self, SolveError> {
         let start = Instant::now();
         let gauge_vertices = graph.gauge_vertices();
-        let mut fixed: Vec<bool> = (0..graph.num_vertices()).map(|v| graph.is_fixed(v)).collect();
+        let mut fixed: Vec<bool> = (0..graph.num_vertices())
+            .map(|v| graph.is_fixed(v))
+            .collect();
         for &v in &gauge_vertices {
             fixed[v] = true;
         }
         let structure = HessianStructure::new(graph, &fixed)?;
         let cholesky = if structure.dim > 0 {
-            Some(SparseCholesky::analyze(structure.pattern.as_ref(), &config.linear)?)
+            Some(SparseCholesky::analyze(
+                structure.pattern.as_ref(),
+                &config.linear,
+            )?)
         } else {
             None
         };
@@ -102,7 +107,10 @@ impl Optimizer {
     /// Changes the options that do not affect the structure (algorithm,
     /// stopping rules, LM settings).
     pub fn set_config(&mut self, config: SolverConfig) {
-        self.config = SolverConfig { linear: self.config.linear, ..config };
+        self.config = SolverConfig {
+            linear: self.config.linear,
+            ..config
+        };
     }
 
     /// Optimises the graph's values in place.
@@ -149,7 +157,9 @@ impl Optimizer {
         }
         let termination = match self.config.algorithm {
             Algorithm::GaussNewton => self.gauss_newton(graph, &mut summary, start, on_iteration),
-            Algorithm::LevenbergMarquardt => self.levenberg_marquardt(graph, &mut summary, start, on_iteration),
+            Algorithm::LevenbergMarquardt => {
+                self.levenberg_marquardt(graph, &mut summary, start, on_iteration)
+            }
         };
         summary.termination = termination;
         summary.iterations = summary.trace.len();
@@ -168,13 +178,20 @@ impl Optimizer {
         let groups = graph.factor_groups();
         for (k, group) in groups.iter().enumerate() {
             let start = self.structure.group_offset[k];
-            let end = self.structure.group_offset.get(k + 1).copied().unwrap_or(self.structure.buffer_len);
+            let end = self
+                .structure
+                .group_offset
+                .get(k + 1)
+                .copied()
+                .unwrap_or(self.structure.buffer_len);
             group.linearize(values, &mut self.buffer[start..end]);
         }
         phases.linearize += since(t);
         let t = Instant::now();
-        self.structure.assemble_hessian(&self.buffer, &mut self.hessian);
-        self.structure.assemble_gradient(&self.buffer, &mut self.gradient);
+        self.structure
+            .assemble_hessian(&self.buffer, &mut self.hessian);
+        self.structure
+            .assemble_gradient(&self.buffer, &mut self.gradient);
         let chi2 = self.structure.chi2(&self.buffer);
         phases.assemble += since(t);
         chi2
@@ -182,7 +199,9 @@ impl Optimizer {
 
     /// Factorises H + λI (λ = 0 for GN) and solves for the step −(H + λI)⁻¹g.
     fn compute_step(&mut self, lambda: f64, phases: &mut PhaseTimes) -> bool {
-        let Some(cholesky) = self.cholesky.as_mut() else { return false };
+        let Some(cholesky) = self.cholesky.as_mut() else {
+            return false;
+        };
         let t = Instant::now();
         if lambda != 0.0 {
             for (k, &d) in self.structure.diagonal.iter().enumerate() {
@@ -190,7 +209,9 @@ impl Optimizer {
                 self.hessian[d] += lambda;
             }
         }
-        let ok = cholesky.factorize(self.structure.pattern.as_ref(), &self.hessian).is_ok();
+        let ok = cholesky
+            .factorize(self.structure.pattern.as_ref(), &self.hessian)
+            .is_ok();
         if lambda != 0.0 {
             for (k, &d) in self.structure.diagonal.iter().enumerate() {
                 self.hessian[d] = self.diagonal_backup[k];
@@ -223,7 +244,10 @@ impl Optimizer {
     }
 
     fn restore(&self, graph: &mut Graph) {
-        graph.values_mut().params_mut().copy_from_slice(&self.backup);
+        graph
+            .values_mut()
+            .params_mut()
+            .copy_from_slice(&self.backup);
     }
 
     fn step_is_small(&self, graph: &Graph) -> bool {
@@ -293,7 +317,11 @@ impl Optimizer {
         on_iteration: &mut dyn FnMut(&IterationStats),
     ) -> Termination {
         let mut chi2 = summary.initial_chi2;
-        let max_diagonal = self.structure.diagonal.iter().fold(0.0f64, |m, &d| m.max(self.hessian[d].abs()));
+        let max_diagonal = self
+            .structure
+            .diagonal
+            .iter()
+            .fold(0.0f64, |m, &d| m.max(self.hessian[d].abs()));
         let mut lambda = self.config.lm.tau * max_diagonal.max(f64::MIN_POSITIVE);
         let mut ni = 2.0;
         for iteration in 0..self.config.max_iterations {
@@ -318,8 +346,13 @@ impl Optimizer {
                     phases.chi2 += since(t);
                 }
                 // Predicted decrease of the damped linear model, as in g2o.
-                let predicted: f64 =
-                    self.step.iter().zip(&self.gradient).map(|(s, g)| s * (lambda * s - g)).sum::<f64>() + 1e-3;
+                let predicted: f64 = self
+                    .step
+                    .iter()
+                    .zip(&self.gradient)
+                    .map(|(s, g)| s * (lambda * s - g))
+                    .sum::<f64>()
+                    + 1e-3;
                 let rho = (chi2 - trial_chi2) / predicted;
                 if solved && rho > 0.0 && trial_chi2.is_finite() {
                     let alpha = (1.0 - (2.0 * rho - 1.0).powi(3)).min(2.0 / 3.0);
@@ -398,7 +431,11 @@ fn non_finite_edge(graph: &Graph) -> SolveError {
             };
         }
     }
-    SolveError::NonFiniteChi2 { edge: usize::MAX, name: "?", vertices: vec![] }
+    SolveError::NonFiniteChi2 {
+        edge: usize::MAX,
+        name: "?",
+        vertices: vec![],
+    }
 }
 
 /// Optimises `graph` with `config` (a one-shot [`Optimizer`]).

@@ -32,17 +32,25 @@ impl Gather {
         for t in 0..targets {
             start[t + 1] += start[t];
         }
-        Self { start, source: pairs.into_iter().map(|(_, s)| s).collect() }
+        Self {
+            start,
+            source: pairs.into_iter().map(|(_, s)| s).collect(),
+        }
     }
 
     fn apply(&self, buffer: &[f64], out: &mut [f64]) {
-        out.par_chunks_mut(GATHER_CHUNK).enumerate().for_each(|(c, chunk)| {
-            let base = c * GATHER_CHUNK;
-            for (k, v) in chunk.iter_mut().enumerate() {
-                let (a, b) = (self.start[base + k] as usize, self.start[base + k + 1] as usize);
-                *v = self.source[a..b].iter().map(|&s| buffer[s as usize]).sum();
-            }
-        });
+        out.par_chunks_mut(GATHER_CHUNK)
+            .enumerate()
+            .for_each(|(c, chunk)| {
+                let base = c * GATHER_CHUNK;
+                for (k, v) in chunk.iter_mut().enumerate() {
+                    let (a, b) = (
+                        self.start[base + k] as usize,
+                        self.start[base + k + 1] as usize,
+                    );
+                    *v = self.source[a..b].iter().map(|&s| buffer[s as usize]).sum();
+                }
+            });
     }
 }
 
@@ -82,7 +90,9 @@ impl HessianStructure {
 
         // Block pattern: for each free vertex (a block column), the free vertices
         // sharing an edge with it that come no later (block rows of the upper triangle).
-        let mut rows_of: Vec<Vec<usize>> = (0..n).map(|v| if column[v].is_some() { vec![v] } else { vec![] }).collect();
+        let mut rows_of: Vec<Vec<usize>> = (0..n)
+            .map(|v| if column[v].is_some() { vec![v] } else { vec![] })
+            .collect();
         for g in graph.factor_groups() {
             for i in 0..g.len() {
                 let vs = g.vertices(i);
@@ -124,12 +134,18 @@ impl HessianStructure {
             }
         }
         if row_idx.len() >= u32::MAX as usize {
-            return Err(SolveError::TooLarge { entries: row_idx.len() });
+            return Err(SolveError::TooLarge {
+                entries: row_idx.len(),
+            });
         }
         let value_index = |r: usize, c: usize, i: usize, j: usize| -> usize {
             // Entry (i, j) of block (r, c), r before or equal to c.
             let cc = column[c].unwrap_or(0);
-            let pos = block_pos[c].iter().find(|&&(v, _)| v == r).map(|&(_, p)| p).unwrap_or(0);
+            let pos = block_pos[c]
+                .iter()
+                .find(|&&(v, _)| v == r)
+                .map(|&(_, p)| p)
+                .unwrap_or(0);
             col_ptr[cc + j] + pos + i
         };
         let diagonal: Vec<usize> = free
@@ -153,7 +169,9 @@ impl HessianStructure {
                 for p in 0..vs.len() {
                     for q in p..vs.len() {
                         let (a, b) = (vs[p], vs[q]);
-                        let (Some(ca), Some(cb)) = (column[a], column[b]) else { continue };
+                        let (Some(ca), Some(cb)) = (column[a], column[b]) else {
+                            continue;
+                        };
                         let off = slot + layout::block_offset(dims, p, q);
                         for j in 0..dims[q] {
                             for i2 in 0..dims[p] {
@@ -181,7 +199,9 @@ impl HessianStructure {
             }
             buffer_len += g.len() * stride;
             if buffer_len >= u32::MAX as usize {
-                return Err(SolveError::TooLarge { entries: buffer_len });
+                return Err(SolveError::TooLarge {
+                    entries: buffer_len,
+                });
             }
         }
         let nnz = row_idx.len();
@@ -216,6 +236,8 @@ impl HessianStructure {
 
     /// Total χ² stored in the buffer by the last linearisation (deterministic order).
     pub fn chi2(&self, buffer: &[f64]) -> f64 {
-        cairn_core::factor::deterministic_sum(self.chi2_slots.len(), |k| buffer[self.chi2_slots[k] as usize])
+        cairn_core::factor::deterministic_sum(self.chi2_slots.len(), |k| {
+            buffer[self.chi2_slots[k] as usize]
+        })
     }
 }

@@ -1,0 +1,424 @@
+//! Reading the g2o text format.
+
+use crate::error::{G2oError, LineError};
+use crate::tags;
+use cairn_core::information::{check_information, nearest_positive_definite};
+use cairn_core::{
+    EdgePriorSE2, EdgeSE2, EdgeSE2XY, EdgeSE3, Graph, InformationIssue, SE2, SE3,
+    SpanningTreeReport, Variable, VertexId,
+};
+use nalgebra::{SMatrix, Vector2};
+use std::collections::BTreeMap;
+use std::path::Path;
+
+/// Options of the reader.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct ReadOptions {
+    /// Replace information matrices that are not positive definite by the
+    /// nearest positive-definite matrix instead of refusing the file.
+    pub repair_information: bool,
+}
+
+/// What the reader found besides the graph.
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct LoadReport {
+    /// Lines read.
+    pub lines: usize,
+    /// Records read, per tag.
+    pub records: BTreeMap<String, usize>,
+    /// Lines skipped because their tag is not supported (PARAMS_*, VERTEX_TRACKXYZ,
+    /// junk), per tag.
+    pub unknown: BTreeMap<String, usize>,
+    /// Lines with more fields than their tag uses (the extra ones are ignored, as g2o does).
+    pub extra_fields: usize,
+    /// Vertices created from edges because the file has no VERTEX lines.
+    pub created_vertices: usize,
+    /// How created vertices were initialised.
+    pub spanning_tree: Option<SpanningTreeReport>,
+    /// `LANDMARK2` ids live in their own id space; landmark `l` became vertex
+    /// `landmark_id_offset + l`.
+    pub landmark_id_offset: Option<VertexId>,
+    /// Lines whose information matrix was replaced by the nearest positive-definite one.
+    pub repaired_information: Vec<usize>,
+    /// Vertices fixed by FIX lines.
+    pub fixed: Vec<VertexId>,
+}
+
+impl LoadReport {
+    /// Total number of skipped lines with unknown tags.
+    pub fn unknown_lines(&self) -> usize {
+        self.unknown.values().sum()
+    }
+}
+
+/// Reads a g2o file.
+pub fn read_file(
+    path: impl AsRef<Path>,
+    options: &ReadOptions,
+) -> Result<(Graph, LoadReport), G2oError> {
+    let path = path.as_ref();
+    let bytes = std::fs::read(path).map_err(|e| G2oError::io(path, e))?;
+    read_bytes(&bytes, options)
+}
+
+/// Reads g2o text held in memory.
+pub fn read_bytes(bytes: &[u8], options: &ReadOptions) -> Result<(Graph, LoadReport), G2oError> {
+    Reader::new(bytes, *options).run()
+}
+
+/// A line split into its tag and fields, with typed access.
+struct Fields<'a> {
+    tag: &'a str,
+    items: Vec<&'a str>,
+}
+
+impl<'a> Fields<'a> {
+    fn need(&self, n: usize) -> Result<(), LineError> {
+        if self.items.len() < n {
+            return Err(LineError::MissingFields {
+                tag: self.tag.to_string(),
+                expected: n,
+                found: self.items.len(),
+            });
+        }
+        Ok(())
+    }
+
+    fn number(&self, k: usize) -> Result<f64, LineError> {
+        let text = self.items[k];
+        let v: f64 = text.parse().map_err(|_| LineError::BadNumber {
+            field: k + 1,
+            text: text.to_string(),
+        })?;
+        if !v.is_finite() {
+            return Err(LineError::NonFinite {
+                field: k + 1,
+                text: text.to_string(),
+            });
+        }
+        Ok(v)
+    }
+
+    fn numbers<const N: usize>(&self, first: usize) -> Result<[f64; N], LineError> {
+        let mut out = [0.0; N];
+        for (i, o) in out.iter_mut().enumerate() {
+            *o = self.number(first + i)?;
+        }
+        Ok(out)
+    }
+
+    fn id(&self, k: usize) -> Result<VertexId, LineError> {
+        let text = self.items[k];
+        text.parse().map_err(|_| LineError::BadId {
+            field: k + 1,
+            text: text.to_string(),
+        })
+    }
+
+    /// An information matrix given as its upper triangle, row by row.
+    fn information<const E: usize>(&self, first: usize) -> Result<SMatrix<f64, E, E>, LineError> {
+        let mut m = SMatrix::<f64, E, E>::zeros();
+        let mut k = first;
+        for r in 0..E {
+            for c in r..E {
+                let v = self.number(k)?;
+                m[(r, c)] = v;
+                m[(c, r)] = v;
+                k += 1;
+            }
+        }
+        Ok(m)
+    }
+}
+
+fn quaternion_params(f: &Fields, first: usize) -> Result<[f64; 7], LineError> {
+    let p = f.numbers::<7>(first)?;
+    if p[3..].iter().all(|&q| q == 0.0) {
+        return Err(LineError::ZeroQuaternion);
+    }
+    Ok(p)
+}
+
+struct PendingLandmark {
+    line: usize,
+    pose: VertexId,
+    landmark: VertexId,
+    z: Vector2<f64>,
+    information: SMatrix<f64, 2, 2>,
+}
+
+struct Reader<'a> {
+    bytes: &'a [u8],
+    options: ReadOptions,
+    graph: Graph,
+    report: LoadReport,
+    create_vertices: bool,
+    uninitialized: Vec<bool>,
+    indefinite: Vec<usize>,
+    fix_lines: Vec<(usize, Vec<VertexId>)>,
+    landmarks: Vec<PendingLandmark>,
+}
+
+impl<'a> Reader<'a> {
+    fn new(bytes: &'a [u8], options: ReadOptions) -> Self {
+        // Files with no VERTEX line at all (CSAIL, manhattan, kitti_*) get their
+        // vertices from the edges.
+        let has_vertices = bytes
+            .split(|&b| b == b'\n')
+            .any(|l| l.trim_ascii_start().starts_with(b"VERTEX_"));
+        Self {
+            bytes,
+            options,
+            graph: Graph::new(),
+            report: LoadReport::default(),
+            create_vertices: !has_vertices,
+            uninitialized: Vec::new(),
+            indefinite: Vec::new(),
+            fix_lines: Vec::new(),
+            landmarks: Vec::new(),
+        }
+    }
+
+    fn run(mut self) -> Result<(Graph, LoadReport), G2oError> {
+        let bytes = self.bytes;
+        let mut lines = bytes.split(|&b| b == b'\n').peekable();
+        let mut number = 0;
+        while let Some(raw) = lines.next() {
+            if raw.is_empty() && lines.peek().is_none() {
+                break; // the final newline
+            }
+            number += 1;
+            self.report.lines = number;
+            self.line(raw).map_err(|error| G2oError::Line {
+                line: number,
+                error,
+            })?;
+        }
+        self.finish()
+    }
+
+    fn line(&mut self, raw: &[u8]) -> Result<(), LineError> {
+        let text = std::str::from_utf8(raw).map_err(|_| LineError::NotUtf8)?;
+        let mut tokens = text.split_ascii_whitespace();
+        let Some(tag) = tokens.next() else {
+            return Ok(());
+        };
+        if tag.starts_with('#') {
+            return Ok(());
+        }
+        let fields = Fields {
+            tag,
+            items: tokens.collect(),
+        };
+        let line = self.report.lines;
+        let used = match tag {
+            tags::VERTEX_SE2 => self.vertex::<SE2, 3>(&fields)?,
+            tags::VERTEX_XY => self.vertex::<Vector2<f64>, 2>(&fields)?,
+            tags::VERTEX_SE3_QUAT => {
+                fields.need(8)?;
+                let p = quaternion_params(&fields, 1)?;
+                self.add_vertex(fields.id(0)?, SE3::from_params(&p))?;
+                8
+            }
+            tags::EDGE_SE2 => {
+                fields.need(11)?;
+                let z = fields.numbers::<3>(2)?;
+                let edge = EdgeSE2::new(SE2::new(z[0], z[1], z[2]));
+                self.binary(&fields, line, edge, fields.information::<3>(5)?)?;
+                11
+            }
+            tags::EDGE_SE2_XY => {
+                fields.need(7)?;
+                let z = fields.numbers::<2>(2)?;
+                let edge = EdgeSE2XY::new(Vector2::new(z[0], z[1]));
+                self.binary(&fields, line, edge, fields.information::<2>(4)?)?;
+                7
+            }
+            tags::LANDMARK2 => {
+                fields.need(7)?;
+                let z = fields.numbers::<2>(2)?;
+                self.landmarks.push(PendingLandmark {
+                    line,
+                    pose: fields.id(0)?,
+                    landmark: fields.id(1)?,
+                    z: Vector2::new(z[0], z[1]),
+                    information: fields.information::<2>(4)?,
+                });
+                7
+            }
+            tags::EDGE_PRIOR_SE2 => {
+                fields.need(10)?;
+                let z = fields.numbers::<3>(1)?;
+                let id = fields.id(0)?;
+                self.ensure_vertex::<SE2, 3>(id, self.create_vertices)?;
+                if let Some(info) = self.checked_information(line, fields.information::<3>(4)?)? {
+                    self.graph.add_unary_edge(
+                        id,
+                        EdgePriorSE2::new(SE2::new(z[0], z[1], z[2])),
+                        info,
+                    )?;
+                }
+                10
+            }
+            tags::EDGE_SE3_QUAT => {
+                fields.need(30)?;
+                let z = SE3::from_params(&quaternion_params(&fields, 2)?);
+                self.binary(&fields, line, EdgeSE3::new(z), fields.information::<6>(9)?)?;
+                30
+            }
+            tags::FIX => {
+                let ids = (0..fields.items.len())
+                    .map(|k| fields.id(k))
+                    .collect::<Result<Vec<_>, _>>()?;
+                self.fix_lines.push((line, ids));
+                fields.items.len()
+            }
+            other => {
+                *self.report.unknown.entry(other.to_string()).or_default() += 1;
+                return Ok(());
+            }
+        };
+        if fields.items.len() > used {
+            self.report.extra_fields += 1;
+        }
+        *self.report.records.entry(tag.to_string()).or_default() += 1;
+        Ok(())
+    }
+
+    fn vertex<V: Variable<D>, const D: usize>(
+        &mut self,
+        fields: &Fields,
+    ) -> Result<usize, LineError> {
+        fields.need(1 + V::PARAMS)?;
+        let p: Vec<f64> = (1..=V::PARAMS)
+            .map(|k| fields.number(k))
+            .collect::<Result<_, _>>()?;
+        self.add_vertex(fields.id(0)?, V::from_params(&p))?;
+        Ok(1 + V::PARAMS)
+    }
+
+    fn add_vertex<V: Variable<D>, const D: usize>(
+        &mut self,
+        id: VertexId,
+        value: V,
+    ) -> Result<(), LineError> {
+        self.graph.add_vertex(id, value)?;
+        self.uninitialized.push(false);
+        Ok(())
+    }
+
+    /// Creates the vertex an edge names if it is missing and `create` is set
+    /// (files without VERTEX lines, and `LANDMARK2` landmarks).
+    fn ensure_vertex<V: Variable<D>, const D: usize>(
+        &mut self,
+        id: VertexId,
+        create: bool,
+    ) -> Result<(), LineError> {
+        if create && self.graph.vertex_index(id).is_none() {
+            self.graph.add_vertex(id, V::default())?;
+            self.uninitialized.push(true);
+            self.report.created_vertices += 1;
+        }
+        Ok(())
+    }
+
+    /// The information matrix to use, or `None` if the edge is to be left out
+    /// because its matrix is indefinite (the file is refused at the end).
+    fn checked_information<const E: usize>(
+        &mut self,
+        line: usize,
+        m: SMatrix<f64, E, E>,
+    ) -> Result<Option<SMatrix<f64, E, E>>, LineError> {
+        match check_information(&m) {
+            Ok(()) => Ok(Some(m)),
+            Err(InformationIssue::NotPositiveDefinite { .. })
+                if self.options.repair_information =>
+            {
+                self.report.repaired_information.push(line);
+                Ok(Some(nearest_positive_definite(&m)))
+            }
+            Err(InformationIssue::NotPositiveDefinite { .. }) => {
+                self.indefinite.push(line);
+                Ok(None)
+            }
+            Err(issue) => Err(LineError::Information(issue)),
+        }
+    }
+
+    fn binary<T, const E: usize, const D1: usize, const D2: usize>(
+        &mut self,
+        fields: &Fields,
+        line: usize,
+        edge: T,
+        information: SMatrix<f64, E, E>,
+    ) -> Result<(), LineError>
+    where
+        T: cairn_core::BinaryEdge<E, D1, D2>,
+    {
+        let (i, j) = (fields.id(0)?, fields.id(1)?);
+        self.ensure_vertex::<T::V1, D1>(i, self.create_vertices)?;
+        self.ensure_vertex::<T::V2, D2>(j, self.create_vertices)?;
+        if let Some(info) = self.checked_information(line, information)? {
+            self.graph.add_edge(i, j, edge, info)?;
+        }
+        Ok(())
+    }
+
+    fn finish(mut self) -> Result<(Graph, LoadReport), G2oError> {
+        if !self.landmarks.is_empty() {
+            let offset = self
+                .graph
+                .vertices()
+                .map(|v| v.id)
+                .max()
+                .map_or(0, |m| m + 1);
+            self.report.landmark_id_offset = Some(offset);
+            let landmarks = std::mem::take(&mut self.landmarks);
+            for lm in landmarks {
+                let result = (|| -> Result<(), LineError> {
+                    let id = offset.checked_add(lm.landmark).ok_or(LineError::BadId {
+                        field: 2,
+                        text: lm.landmark.to_string(),
+                    })?;
+                    // Landmarks never have VERTEX lines of their own.
+                    self.ensure_vertex::<Vector2<f64>, 2>(id, true)?;
+                    self.ensure_vertex::<SE2, 3>(lm.pose, self.create_vertices)?;
+                    if let Some(info) = self.checked_information(lm.line, lm.information)? {
+                        self.graph
+                            .add_edge(lm.pose, id, EdgeSE2XY::new(lm.z), info)?;
+                    }
+                    Ok(())
+                })();
+                result.map_err(|error| G2oError::Line {
+                    line: lm.line,
+                    error,
+                })?;
+            }
+        }
+        if !self.indefinite.is_empty() {
+            let count = self.indefinite.len();
+            self.indefinite.truncate(10);
+            return Err(G2oError::IndefiniteInformation {
+                count,
+                lines: self.indefinite,
+            });
+        }
+        for (line, ids) in std::mem::take(&mut self.fix_lines) {
+            for id in ids {
+                self.graph.set_fixed(id, true).map_err(|e| G2oError::Line {
+                    line,
+                    error: e.into(),
+                })?;
+                self.report.fixed.push(id);
+            }
+        }
+        if self.graph.num_vertices() == 0 {
+            return Err(G2oError::Empty);
+        }
+        if self.report.created_vertices > 0 {
+            self.report.spanning_tree =
+                Some(self.graph.initialize_spanning_tree(&self.uninitialized));
+        }
+        Ok((self.graph, self.report))
+    }
+}

@@ -1,0 +1,130 @@
+//! Writing the g2o text format: full precision, atomic file replacement.
+
+use crate::error::G2oError;
+use crate::tags;
+use cairn_core::{EdgePriorSE2, EdgeSE2, EdgeSE2XY, EdgeSE3, EdgeView, Graph, SE2, SE3, Variable};
+use nalgebra::Vector2;
+use std::any::TypeId;
+use std::fmt::Write as _;
+use std::io::Write;
+use std::path::Path;
+
+/// Appends ` v` in the shortest form that reads back to the same `f64`.
+fn num(out: &mut String, v: f64) {
+    // `{:?}` is exact and switches to exponents for very large or small values.
+    let _ = write!(out, " {v:?}");
+}
+
+fn vertex_tag(type_id: TypeId) -> Option<&'static str> {
+    if type_id == TypeId::of::<SE2>() {
+        Some(tags::VERTEX_SE2)
+    } else if type_id == TypeId::of::<Vector2<f64>>() {
+        Some(tags::VERTEX_XY)
+    } else if type_id == TypeId::of::<SE3>() {
+        Some(tags::VERTEX_SE3_QUAT)
+    } else {
+        None
+    }
+}
+
+/// The tag and measurement parameters of a built-in edge.
+fn edge_record(e: &EdgeView) -> Option<(&'static str, Vec<f64>)> {
+    let any = e.edge();
+    if let Some(edge) = any.downcast_ref::<EdgeSE2>() {
+        return Some((
+            tags::EDGE_SE2,
+            edge.measurement().to_vector().as_slice().to_vec(),
+        ));
+    }
+    if let Some(edge) = any.downcast_ref::<EdgeSE2XY>() {
+        return Some((tags::EDGE_SE2_XY, edge.measurement().as_slice().to_vec()));
+    }
+    if let Some(edge) = any.downcast_ref::<EdgePriorSE2>() {
+        return Some((
+            tags::EDGE_PRIOR_SE2,
+            edge.measurement().to_vector().as_slice().to_vec(),
+        ));
+    }
+    if let Some(edge) = any.downcast_ref::<EdgeSE3>() {
+        let mut p = vec![0.0; 7];
+        edge.measurement().write_params(&mut p);
+        return Some((tags::EDGE_SE3_QUAT, p));
+    }
+    None
+}
+
+/// The graph as g2o text: vertices in insertion order (each fixed one followed
+/// by a FIX line), then edges in insertion order with their information
+/// matrices' upper triangles row by row.
+pub fn to_string(graph: &Graph) -> Result<String, G2oError> {
+    let mut out = String::with_capacity(64 * (graph.num_vertices() + 2 * graph.num_edges()));
+    for v in graph.vertices() {
+        let tag = vertex_tag(v.kind.type_id).ok_or(G2oError::Unwritable(v.kind.name))?;
+        let _ = write!(out, "{tag} {}", v.id);
+        for &p in v.params {
+            num(&mut out, p);
+        }
+        out.push('\n');
+        if v.fixed {
+            let _ = writeln!(out, "{} {}", tags::FIX, v.id);
+        }
+    }
+    for e in graph.edges() {
+        let (tag, measurement) = edge_record(&e).ok_or(G2oError::Unwritable(e.name()))?;
+        out.push_str(tag);
+        for &v in e.vertices() {
+            let _ = write!(out, " {}", graph.vertex(v).id);
+        }
+        for m in measurement {
+            num(&mut out, m);
+        }
+        let n = e.error_dim();
+        let info = e.information();
+        for r in 0..n {
+            for c in r..n {
+                num(&mut out, info[r + c * n]);
+            }
+        }
+        out.push('\n');
+    }
+    Ok(out)
+}
+
+/// Writes the graph as g2o text to `out`.
+pub fn write(graph: &Graph, mut out: impl Write) -> Result<(), G2oError> {
+    let text = to_string(graph)?;
+    out.write_all(text.as_bytes())
+        .and_then(|_| out.flush())
+        .map_err(|e| G2oError::io("<output>", e))
+}
+
+/// Writes the graph to `path` atomically: into a temporary file beside it,
+/// synced, then renamed over `path`, so an interrupted run never leaves a
+/// truncated file.
+pub fn write_file(graph: &Graph, path: impl AsRef<Path>) -> Result<(), G2oError> {
+    let text = to_string(graph)?;
+    write_atomically(path.as_ref(), text.as_bytes())
+}
+
+/// Replaces `path` by `bytes` atomically (temporary file, fsync, rename).
+pub fn write_atomically(path: &Path, bytes: &[u8]) -> Result<(), G2oError> {
+    let dir = match path.parent() {
+        Some(d) if !d.as_os_str().is_empty() => d,
+        _ => Path::new("."),
+    };
+    let name = path
+        .file_name()
+        .map(|n| n.to_string_lossy().into_owned())
+        .unwrap_or_else(|| "output".into());
+    let tmp = dir.join(format!(".{name}.{}.tmp", std::process::id()));
+    let result = (|| {
+        let mut file = std::fs::File::create(&tmp)?;
+        file.write_all(bytes)?;
+        file.sync_all()?;
+        std::fs::rename(&tmp, path)
+    })();
+    result.map_err(|e| {
+        let _ = std::fs::remove_file(&tmp);
+        G2oError::io(path, e)
+    })
+}

@@ -1,0 +1,43 @@
+//! Command-line definitions and dispatch.
+
+mod generate;
+mod solve;
+
+use clap::{Parser, Subcommand};
+
+/// Cairn: fast, g2o-compatible pose-graph and factor-graph optimisation.
+#[derive(Debug, Parser)]
+#[command(name = "cairn", version, about, long_about = None)]
+pub struct Cli {
+    #[command(subcommand)]
+    command: Command,
+}
+
+#[derive(Debug, Subcommand)]
+enum Command {
+    /// Optimise a g2o file and write the result (g2o's `g2o -o OUT FILE`).
+    Solve(solve::SolveArgs),
+    /// Write a synthetic benchmark graph (Manhattan world or sphere) in g2o format.
+    Generate(generate::GenerateArgs),
+}
+
+/// Runs the parsed command.
+pub fn run(cli: Cli) -> Result<(), String> {
+    match cli.command {
+        Command::Solve(args) => solve::run(args),
+        Command::Generate(args) => generate::run(args),
+    }
+}
+
+/// Writes `bytes` to `path` atomically, or to stdout for `-`.
+pub fn write_output(path: &std::path::Path, bytes: &[u8]) -> Result<(), String> {
+    if path.as_os_str() == "-" {
+        use std::io::Write;
+        let mut out = std::io::stdout().lock();
+        return out
+            .write_all(bytes)
+            .and_then(|_| out.flush())
+            .map_err(|e| format!("stdout: {e}"));
+    }
+    cairn::g2o::write_atomically(path, bytes).map_err(|e| e.to_string())
+}

@@ -1,0 +1,306 @@
+//! `cairn solve`: optimise a g2o file.
+
+use cairn::g2o::{LoadReport, ReadOptions};
+use cairn::solvers::{
+    Algorithm, Factorization, IterationStats, LinearSolverConfig, Optimizer, SolverConfig, Summary,
+};
+use clap::{Args, ValueEnum};
+use std::fmt::Write as _;
+use std::io::Read;
+use std::path::PathBuf;
+use std::time::Instant;
+
+#[derive(Clone, Copy, Debug, PartialEq, Eq, ValueEnum)]
+enum SolverName {
+    /// Gauss-Newton.
+    Gn,
+    /// Levenberg-Marquardt.
+    Lm,
+}
+
+#[derive(Clone, Copy, Debug, PartialEq, Eq, ValueEnum)]
+enum FactorizationName {
+    /// faer's choice.
+    Auto,
+    /// Column by column.
+    Simplicial,
+    /// Dense supernodes.
+    Supernodal,
+}
+
+/// Options of `cairn solve`.
+#[derive(Debug, Args)]
+pub struct SolveArgs {
+    /// Input g2o file (`-` for stdin).
+    file: PathBuf,
+    /// Write the optimised graph here (`-` for stdout), atomically.
+    #[arg(short, long)]
+    output: Option<PathBuf>,
+    /// Maximum number of iterations.
+    #[arg(short = 'i', long, default_value_t = 100)]
+    iterations: usize,
+    /// Algorithm (g2o's default is Gauss-Newton too).
+    #[arg(long, value_enum, default_value = "gn")]
+    solver: SolverName,
+    /// Hold these vertex ids fixed (comma-separated), besides FIX lines.
+    #[arg(long, value_delimiter = ',')]
+    fix: Vec<i64>,
+    /// Stop when χ² falls by less than this fraction in an iteration.
+    #[arg(long, default_value_t = SolverConfig::default().relative_decrease)]
+    relative_decrease: f64,
+    /// Replace information matrices that are not positive definite by the
+    /// nearest positive-definite ones (cubicle.g2o needs this) instead of refusing.
+    #[arg(long)]
+    repair_information: bool,
+    /// Cholesky variant.
+    #[arg(long, value_enum, default_value = "auto")]
+    factorization: FactorizationName,
+    /// Worker threads (0: one per core).
+    #[arg(long, default_value_t = 0)]
+    threads: usize,
+    /// Append a one-line CSV summary of the run to this file (header if new).
+    #[arg(long)]
+    summary: Option<PathBuf>,
+    /// Write per-iteration statistics as CSV to this file.
+    #[arg(long)]
+    stats: Option<PathBuf>,
+    /// Print the summary as JSON on stdout.
+    #[arg(long)]
+    json: bool,
+    /// No per-iteration output on stderr.
+    #[arg(short, long)]
+    quiet: bool,
+}
+
+fn iteration_line(s: &IterationStats, edges: usize) -> String {
+    let mut line = format!(
+        "iteration= {}\t chi2= {:.6}\t time= {:.6}\t cumTime= {:.6}\t edges= {}",
+        s.iteration, s.chi2, s.time, s.cumulative_time, edges
+    );
+    if let Some(l) = s.lambda {
+        let _ = write!(line, "\t lambda= {l:.6e}");
+    }
+    line
+}
+
+fn stats_csv(summary: &Summary) -> String {
+    let mut out = String::from(
+        "iteration,chi2,lambda,trials,gradient_max,step_max,time_s,cumulative_s,\
+         linearize_s,assemble_s,factorize_s,solve_s,update_s,chi2_s\n",
+    );
+    for s in &summary.trace {
+        let p = &s.phases;
+        let _ = writeln!(
+            out,
+            "{},{:?},{},{},{:?},{:?},{:?},{:?},{:?},{:?},{:?},{:?},{:?},{:?}",
+            s.iteration,
+            s.chi2,
+            s.lambda.map_or(String::new(), |l| format!("{l:?}")),
+            s.trials,
+            s.gradient_max,
+            s.step_max,
+            s.time,
+            s.cumulative_time,
+            p.linearize,
+            p.assemble,
+            p.factorize,
+            p.solve,
+            p.update,
+            p.chi2
+        );
+    }
+    out
+}
+
+const SUMMARY_HEADER: &str = "file,algorithm,vertices,edges,initial_chi2,final_chi2,iterations,termination,\
+                              load_s,solve_s,write_s\n";
+
+struct Times {
+    load: f64,
+    solve: f64,
+    write: f64,
+}
+
+fn summary_row(file: &str, v: usize, e: usize, s: &Summary, t: &Times) -> String {
+    format!(
+        "{},{},{},{},{:?},{:?},{},{:?},{:?},{:?},{:?}\n",
+        file,
+        s.algorithm.short_name(),
+        v,
+        e,
+        s.initial_chi2,
+        s.final_chi2,
+        s.iterations,
+        s.termination,
+        t.load,
+        t.solve,
+        t.write
+    )
+}
+
+fn report_json(r: &LoadReport) -> serde_json::Value {
+    serde_json::json!({
+        "lines": r.lines,
+        "records": r.records,
+        "unknown": r.unknown,
+        "extra_fields": r.extra_fields,
+        "created_vertices": r.created_vertices,
+        "landmark_id_offset": r.landmark_id_offset,
+        "repaired_information": r.repaired_information.len(),
+        "fixed": r.fixed,
+        "spanning_tree_roots": r.spanning_tree.as_ref().map(|s| s.roots.clone()),
+    })
+}
+
+fn describe_load(name: &str, r: &LoadReport, vertices: usize, edges: usize) -> String {
+    let mut s = format!("loaded {name}: {vertices} vertices, {edges} edges");
+    if r.unknown_lines() > 0 {
+        let tags: Vec<String> = r.unknown.iter().map(|(t, n)| format!("{t} ×{n}")).collect();
+        let _ = write!(
+            s,
+            "; skipped {} lines with unsupported tags ({})",
+            r.unknown_lines(),
+            tags.join(", ")
+        );
+    }
+    if r.created_vertices > 0 {
+        let _ = write!(
+            s,
+            "; created {} vertices from the edges, initialised by spanning tree",
+            r.created_vertices
+        );
+    }
+    if let Some(off) = r.landmark_id_offset {
+        let _ = write!(s, "; LANDMARK2 landmark l is vertex {off}+l");
+    }
+    if !r.repaired_information.is_empty() {
+        let _ = write!(
+            s,
+            "; repaired {} information matrices that were not positive definite",
+            r.repaired_information.len()
+        );
+    }
+    s
+}
+
+pub fn run(a: SolveArgs) -> Result<(), String> {
+    if a.json && a.output.as_ref().is_some_and(|o| o.as_os_str() == "-") {
+        return Err("--json and -o - both want stdout; write the graph to a file".into());
+    }
+    if a.threads > 0 {
+        rayon::ThreadPoolBuilder::new()
+            .num_threads(a.threads)
+            .build_global()
+            .map_err(|e| e.to_string())?;
+    }
+    let name = a.file.display().to_string();
+    let t = Instant::now();
+    let bytes = if name == "-" {
+        let mut b = Vec::new();
+        std::io::stdin()
+            .read_to_end(&mut b)
+            .map_err(|e| format!("stdin: {e}"))?;
+        b
+    } else {
+        std::fs::read(&a.file).map_err(|e| format!("{name}: {e}"))?
+    };
+    let options = ReadOptions {
+        repair_information: a.repair_information,
+    };
+    let (mut graph, report) =
+        cairn::g2o::read_bytes(&bytes, &options).map_err(|e| format!("{name}: {e}"))?;
+    for &id in &a.fix {
+        graph
+            .set_fixed(id, true)
+            .map_err(|e| format!("--fix: {e}"))?;
+    }
+    let load = t.elapsed().as_secs_f64();
+    let (vertices, edges) = (graph.num_vertices(), graph.num_edges());
+    if !a.quiet {
+        eprintln!("{}", describe_load(&name, &report, vertices, edges));
+    }
+
+    let config = SolverConfig {
+        algorithm: match a.solver {
+            SolverName::Gn => Algorithm::GaussNewton,
+            SolverName::Lm => Algorithm::LevenbergMarquardt,
+        },
+        max_iterations: a.iterations,
+        relative_decrease: a.relative_decrease,
+        linear: LinearSolverConfig {
+            factorization: match a.factorization {
+                FactorizationName::Auto => Factorization::Auto,
+                FactorizationName::Simplicial => Factorization::Simplicial,
+                FactorizationName::Supernodal => Factorization::Supernodal,
+            },
+            ..Default::default()
+        },
+        ..Default::default()
+    };
+    let t = Instant::now();
+    let mut optimizer = Optimizer::new(&graph, config).map_err(|e| format!("{name}: {e}"))?;
+    let quiet = a.quiet;
+    let summary = optimizer
+        .optimize_with(&mut graph, &mut |s| {
+            if !quiet {
+                eprintln!("{}", iteration_line(s, edges));
+            }
+        })
+        .map_err(|e| format!("{name}: {e}"))?;
+    let solve = t.elapsed().as_secs_f64();
+
+    let t = Instant::now();
+    if let Some(out) = &a.output {
+        let text = cairn::g2o::to_string(&graph).map_err(|e| e.to_string())?;
+        super::write_output(out, text.as_bytes())?;
+    }
+    let write = t.elapsed().as_secs_f64();
+    let times = Times { load, solve, write };
+
+    if !a.quiet {
+        eprintln!(
+            "{}: {:?} after {} iterations: χ² {:.6} → {:.6}; load {:.3}s, solve {:.3}s, write {:.3}s{}",
+            config.algorithm.short_name(),
+            summary.termination,
+            summary.iterations,
+            summary.initial_chi2,
+            summary.final_chi2,
+            load,
+            solve,
+            write,
+            if summary.gauge.is_empty() {
+                String::new()
+            } else {
+                format!(
+                    "; gauge: fixed vertex {:?} ({} components)",
+                    summary.gauge, summary.components
+                )
+            }
+        );
+    }
+    if let Some(path) = &a.stats {
+        super::write_output(path, stats_csv(&summary).as_bytes())?;
+    }
+    if let Some(path) = &a.summary {
+        let mut text = std::fs::read_to_string(path).unwrap_or_default();
+        if text.is_empty() {
+            text.push_str(SUMMARY_HEADER);
+        }
+        text.push_str(&summary_row(&name, vertices, edges, &summary, &times));
+        super::write_output(path, text.as_bytes())?;
+    }
+    if a.json {
+        let value = serde_json::json!({
+            "file": name,
+            "vertices": vertices,
+            "edges": edges,
+            "load": report_json(&report),
+            "summary": summary,
+            "load_s": load,
+            "solve_s": solve,
+            "write_s": write,
+        });
+        println!("{value}");
+    }
+    Ok(())
+}

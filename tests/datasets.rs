@@ -1,0 +1,195 @@
+//! End-to-end solves of the public benchmark files: every file loads and
+//! solves, and on the reference files the final χ² (g2o convention) matches or
+//! beats g2o's for the same algorithm (../shared/peers/baseline.jsonl) and
+//! equals the local minimum computed independently in the datasets' MANIFEST.
+
+mod common;
+
+use cairn::g2o::{G2oError, ReadOptions, read_file};
+use cairn::solvers::{Algorithm, SolverConfig, optimize};
+
+/// Reference files, the MANIFEST's local minimum ("chi2 local min, chordal
+/// init (computed)"), and whether g2o's Levenberg-Marquardt reaches it from the
+/// file's vertices in 100 iterations (on city10000 it does not, and neither do we:
+/// our LM follows g2o's schedule exactly).
+const REFERENCE: [(&str, f64, bool); 10] = [
+    ("2d/intel.g2o", 45.004696, true),
+    ("2d/manhattanOlson3500.g2o", 146.076613, true),
+    ("2d/input_M3500_g2o.g2o", 137.912951, true),
+    ("2d/ring.g2o", 11.163101, true),
+    ("2d/kitti_00.g2o", 98.322012, true),
+    ("2d/city10000.g2o", 511.985164, false),
+    ("landmarks/dlr.g2o", 56860.35268, true),
+    ("landmarks/simulation-pose-landmark.g2o", 474.09954, true),
+    ("3d/sphere2500.g2o", 727.149667, true),
+    ("3d/parking-garage.g2o", 1.238691, true),
+];
+
+fn check_reference(algorithm: Algorithm) {
+    let algo = algorithm.short_name();
+    for (file, minimum, lm_reaches) in REFERENCE {
+        let Some(path) = common::dataset(file) else {
+            return;
+        };
+        let (mut graph, _) = read_file(&path, &ReadOptions::default()).unwrap();
+        let summary = optimize(
+            &mut graph,
+            SolverConfig {
+                algorithm,
+                ..Default::default()
+            },
+        )
+        .unwrap();
+        let chi2 = summary.final_chi2;
+        let name = file.rsplit('/').next().unwrap_or(file);
+        let (g2o, _) = common::g2o_baseline(name, algo)
+            .unwrap_or_else(|| panic!("no g2o {algo} baseline for {name}"));
+        let to_minimum = (chi2 - minimum) / minimum;
+        eprintln!(
+            "{name} {algo}: χ² {chi2:.10} after {} it; g2o {g2o:.10}; minimum {minimum}",
+            summary.iterations
+        );
+        // Never below the true local minimum: that would mean a wrong objective.
+        assert!(
+            to_minimum > -1e-6,
+            "{name} {algo}: χ² {chi2} is below the minimum {minimum}"
+        );
+        // As good as g2o. On SE3 files g2o keeps the files' slightly non-unit vertex
+        // quaternions (|q|² − 1 up to 1.4e-6), so its rotations are not quite
+        // orthonormal and its χ² can dip a few 1e-6 below the SE(3) minimum, which
+        // we reach instead.
+        assert!(
+            chi2 <= g2o * (1.0 + 1e-6) || to_minimum.abs() <= 1e-6,
+            "{name} {algo}: χ² {chi2} is worse than g2o's {g2o}"
+        );
+        if algorithm == Algorithm::GaussNewton || lm_reaches {
+            assert!(
+                to_minimum.abs() <= 1e-6,
+                "{name} {algo}: χ² {chi2} misses the minimum {minimum}"
+            );
+            assert!(
+                summary.termination.converged(),
+                "{name} {algo}: {:?}",
+                summary.termination
+            );
+        }
+    }
+}
+
+#[test]
+fn gauss_newton_matches_g2o_on_reference_files() {
+    check_reference(Algorithm::GaussNewton);
+}
+
+#[test]
+fn levenberg_marquardt_matches_g2o_on_reference_files() {
+    check_reference(Algorithm::LevenbergMarquardt);
+}
+
+fn solve_all_in(folder: &str) {
+    let Some(dir) = common::shared() else { return };
+    let mut files: Vec<_> = std::fs::read_dir(dir.join("datasets").join(folder))
+        .unwrap()
+        .filter_map(|e| e.ok().map(|e| e.path()))
+        .filter(|p| p.extension().is_some_and(|x| x == "g2o"))
+        .collect();
+    files.sort();
+    assert!(!files.is_empty());
+    for path in files {
+        let name = path.file_name().unwrap().to_string_lossy().into_owned();
+        let repair = name == "cubicle.g2o";
+        let (mut graph, report) = read_file(
+            &path,
+            &ReadOptions {
+                repair_information: repair,
+            },
+        )
+        .unwrap_or_else(|e| panic!("{name}: {e}"));
+        assert!(graph.num_vertices() > 0, "{name}");
+        assert_eq!(report.unknown_lines(), 0, "{name}: {:?}", report.unknown);
+        let config = SolverConfig {
+            algorithm: Algorithm::LevenbergMarquardt,
+            ..Default::default()
+        };
+        let s = optimize(&mut graph, config).unwrap_or_else(|e| panic!("{name}: {e}"));
+        eprintln!(
+            "{name}: {} → {} in {} it ({:?})",
+            s.initial_chi2, s.final_chi2, s.iterations, s.termination
+        );
+        assert!(s.final_chi2.is_finite(), "{name}");
+        assert!(s.final_chi2 <= s.initial_chi2, "{name}: LM increased χ²");
+        assert!(
+            s.final_chi2 < 0.5 * s.initial_chi2 || s.initial_chi2 < 1.0,
+            "{name}: barely improved"
+        );
+    }
+}
+
+#[test]
+fn every_2d_file_loads_and_solves() {
+    solve_all_in("2d");
+}
+
+#[test]
+fn every_3d_file_loads_and_solves() {
+    solve_all_in("3d");
+}
+
+#[test]
+fn every_landmark_file_loads_and_solves() {
+    solve_all_in("landmarks");
+}
+
+#[test]
+fn cubicle_is_refused_until_repaired() {
+    let Some(path) = common::dataset("3d/cubicle.g2o") else {
+        return;
+    };
+    match read_file(&path, &ReadOptions::default()) {
+        Err(G2oError::IndefiniteInformation { count, lines }) => {
+            assert_eq!(count, 5021);
+            assert_eq!(lines.len(), 10);
+            assert!(
+                lines.windows(2).all(|w| w[0] < w[1]) && lines[0] > 5750,
+                "edge lines: {lines:?}"
+            );
+        }
+        other => panic!(
+            "expected IndefiniteInformation, got {:?}",
+            other.map(|_| ())
+        ),
+    }
+    let (_, report) = read_file(
+        &path,
+        &ReadOptions {
+            repair_information: true,
+        },
+    )
+    .unwrap();
+    assert_eq!(report.repaired_information.len(), 5021);
+}
+
+#[test]
+fn files_without_vertices_are_built_from_edges() {
+    for (file, poses, landmarks) in [
+        ("2d/kitti_00.g2o", 4541, 0),
+        ("2d/CSAIL.g2o", 1045, 0),
+        ("landmarks/victoriaPark.g2o", 6969, 151),
+        ("landmarks/cityTrees10000.g2o", 10000, 100),
+    ] {
+        let Some(path) = common::dataset(file) else {
+            return;
+        };
+        let (graph, report) = read_file(&path, &ReadOptions::default()).unwrap();
+        assert_eq!(graph.num_vertices(), poses + landmarks, "{file}");
+        assert_eq!(report.created_vertices, poses + landmarks, "{file}");
+        let tree = report.spanning_tree.expect("initialised");
+        assert_eq!(
+            tree.roots.len(),
+            1,
+            "{file}: one connected component, one root"
+        );
+        assert_eq!(tree.predicted, poses + landmarks - 1, "{file}");
+        assert_eq!(report.landmark_id_offset.is_some(), landmarks > 0, "{file}");
+    }
+}
