@@ -69,6 +69,21 @@ impl Variable<2> for Vector2<f64> {
     }
 }
 
+/// `q` normalised, robust to components that would overflow or underflow when
+/// squared. Already-unit quaternions are kept bit for bit, so that reading what
+/// was written is exact. A zero or non-finite quaternion gives the identity.
+fn unit_quaternion(q: Quaternion<f64>) -> UnitQuaternion<f64> {
+    if (q.norm_squared() - 1.0).abs() <= 4.0 * f64::EPSILON {
+        return UnitQuaternion::new_unchecked(q);
+    }
+    let scale = q.coords.amax();
+    if scale > 0.0 && scale.is_finite() {
+        UnitQuaternion::new_normalize(q / scale)
+    } else {
+        UnitQuaternion::identity()
+    }
+}
+
 impl Variable<6> for SE3 {
     /// x y z qx qy qz qw, the order of g2o's `VERTEX_SE3:QUAT` lines.
     const PARAMS: usize = 7;
@@ -76,15 +91,7 @@ impl Variable<6> for SE3 {
     const IS_POSE: bool = true;
 
     fn from_params(p: &[f64]) -> Self {
-        let q = Quaternion::new(p[6], p[3], p[4], p[5]);
-        // Renormalise only when needed, so that reading what we wrote is exact.
-        let n2 = q.norm_squared();
-        let q = if (n2 - 1.0).abs() > 4.0 * f64::EPSILON {
-            UnitQuaternion::new_normalize(q)
-        } else {
-            UnitQuaternion::new_unchecked(q)
-        };
-        SE3::new(Vector3::new(p[0], p[1], p[2]), q)
+        SE3::new(Vector3::new(p[0], p[1], p[2]), unit_quaternion(Quaternion::new(p[6], p[3], p[4], p[5])))
     }
     fn write_params(&self, out: &mut [f64]) {
         let q = self.q.quaternion();
