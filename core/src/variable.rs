@@ -91,7 +91,10 @@ impl Variable<6> for SE3 {
     const IS_POSE: bool = true;
 
     fn from_params(p: &[f64]) -> Self {
-        SE3::new(Vector3::new(p[0], p[1], p[2]), unit_quaternion(Quaternion::new(p[6], p[3], p[4], p[5])))
+        SE3::new(
+            Vector3::new(p[0], p[1], p[2]),
+            unit_quaternion(Quaternion::new(p[6], p[3], p[4], p[5])),
+        )
     }
     fn write_params(&self, out: &mut [f64]) {
         let q = self.q.quaternion();

@@ -24,15 +24,32 @@ const TWO: &str = "VERTEX_SE2 0 0 0 0\nVERTEX_SE2 1 1 0 0\n";
 fn malformed_number() {
     let (line, e) = line_error("VERTEX_SE2 0 1.0 abc 0\n");
     assert_eq!(line, 1);
-    assert_eq!(e, LineError::BadNumber { field: 3, text: "abc".into() });
-    assert!(error_of("VERTEX_SE2 0 1.0 abc 0\n").to_string().starts_with("line 1: field 3 (\"abc\")"));
+    assert_eq!(
+        e,
+        LineError::BadNumber {
+            field: 3,
+            text: "abc".into()
+        }
+    );
+    assert!(
+        error_of("VERTEX_SE2 0 1.0 abc 0\n")
+            .to_string()
+            .starts_with("line 1: field 3 (\"abc\")")
+    );
 }
 
 #[test]
 fn missing_numbers() {
     let (line, e) = line_error(&format!("{TWO}EDGE_SE2 0 1 1 0\n"));
     assert_eq!(line, 3);
-    assert_eq!(e, LineError::MissingFields { tag: "EDGE_SE2".into(), expected: 11, found: 4 });
+    assert_eq!(
+        e,
+        LineError::MissingFields {
+            tag: "EDGE_SE2".into(),
+            expected: 11,
+            found: 4
+        }
+    );
 }
 
 #[test]
@@ -40,41 +57,73 @@ fn nan_and_infinity() {
     for bad in ["nan", "NaN", "inf", "-inf", "1e999"] {
         let (line, e) = line_error(&format!("VERTEX_SE2 0 {bad} 0 0\n"));
         assert_eq!(line, 1);
-        assert!(matches!(e, LineError::NonFinite { field: 2, .. }), "{bad}: {e}");
+        assert!(
+            matches!(e, LineError::NonFinite { field: 2, .. }),
+            "{bad}: {e}"
+        );
     }
     let (line, e) = line_error(&format!("{TWO}EDGE_SE2 0 1 1 0 0 1 0 0 nan 0 1\n"));
-    assert_eq!((line, matches!(e, LineError::NonFinite { field: 9, .. })), (3, true));
+    assert_eq!(
+        (line, matches!(e, LineError::NonFinite { field: 9, .. })),
+        (3, true)
+    );
 }
 
 #[test]
 fn bad_vertex_id() {
     let (_, e) = line_error("VERTEX_SE2 1.5 0 0 0\n");
-    assert_eq!(e, LineError::BadId { field: 1, text: "1.5".into() });
+    assert_eq!(
+        e,
+        LineError::BadId {
+            field: 1,
+            text: "1.5".into()
+        }
+    );
 }
 
 #[test]
 fn edge_naming_an_unknown_vertex() {
     let (line, e) = line_error(&format!("{TWO}EDGE_SE2 0 7 1 0 0 1 0 0 1 0 1\n"));
-    assert_eq!((line, e), (3, LineError::Graph(GraphError::UnknownVertex(7))));
+    assert_eq!(
+        (line, e),
+        (3, LineError::Graph(GraphError::UnknownVertex(7)))
+    );
 }
 
 #[test]
 fn duplicate_vertex_id() {
     let (line, e) = line_error("VERTEX_SE2 0 0 0 0\nVERTEX_XY 0 1 1\n");
-    assert_eq!((line, e), (2, LineError::Graph(GraphError::DuplicateVertex(0))));
+    assert_eq!(
+        (line, e),
+        (2, LineError::Graph(GraphError::DuplicateVertex(0)))
+    );
 }
 
 #[test]
 fn wrong_vertex_type() {
-    let (line, e) = line_error("VERTEX_SE2 0 0 0 0\nVERTEX_XY 1 1 1\nEDGE_SE2 0 1 1 0 0 1 0 0 1 0 1\n");
+    let (line, e) =
+        line_error("VERTEX_SE2 0 0 0 0\nVERTEX_XY 1 1 1\nEDGE_SE2 0 1 1 0 0 1 0 0 1 0 1\n");
     assert_eq!(line, 3);
-    assert!(matches!(e, LineError::Graph(GraphError::WrongVertexType { id: 1, actual: "XY", .. })), "{e}");
+    assert!(
+        matches!(
+            e,
+            LineError::Graph(GraphError::WrongVertexType {
+                id: 1,
+                actual: "XY",
+                ..
+            })
+        ),
+        "{e}"
+    );
 }
 
 #[test]
 fn self_loop() {
     let (_, e) = line_error("VERTEX_SE2 0 0 0 0\nEDGE_SE2 0 0 1 0 0 1 0 0 1 0 1\n");
-    assert!(matches!(e, LineError::Graph(GraphError::SelfLoop { id: 0, .. })));
+    assert!(matches!(
+        e,
+        LineError::Graph(GraphError::SelfLoop { id: 0, .. })
+    ));
 }
 
 #[test]
@@ -86,12 +135,20 @@ fn zero_quaternion() {
 #[test]
 fn fix_of_an_unknown_vertex() {
     let (line, e) = line_error(&format!("FIX 9\n{TWO}"));
-    assert_eq!((line, e), (1, LineError::Graph(GraphError::UnknownVertex(9))));
+    assert_eq!(
+        (line, e),
+        (1, LineError::Graph(GraphError::UnknownVertex(9)))
+    );
 }
 
 #[test]
 fn empty_files() {
-    for text in ["", "\n\n", "# only a comment\n", "PARAMS_SE2OFFSET 0 1 2 3\nsome junk\n"] {
+    for text in [
+        "",
+        "\n\n",
+        "# only a comment\n",
+        "PARAMS_SE2OFFSET 0 1 2 3\nsome junk\n",
+    ] {
         assert!(matches!(error_of(text), G2oError::Empty), "{text:?}");
     }
 }
@@ -100,7 +157,10 @@ fn empty_files() {
 fn not_utf8() {
     let bytes = b"VERTEX_SE2 0 0 0 0\nVERTEX_SE2 1 \xff\xfe 0 0\n";
     match read_bytes(bytes, &ReadOptions::default()) {
-        Err(G2oError::Line { line: 2, error: LineError::NotUtf8 }) => {}
+        Err(G2oError::Line {
+            line: 2,
+            error: LineError::NotUtf8,
+        }) => {}
         other => panic!("{:?}", other.map(|_| ())),
     }
 }
@@ -109,16 +169,35 @@ fn not_utf8() {
 fn indefinite_information_is_refused_then_repaired() {
     let text = format!("{TWO}EDGE_SE2 0 1 1 0 0 1 2 0 1 0 1\nEDGE_SE2 1 0 -1 0 0 1 0 0 1 0 -5\n");
     match error_of(&text) {
-        G2oError::IndefiniteInformation { count, lines } => assert_eq!((count, lines), (2, vec![3, 4])),
+        G2oError::IndefiniteInformation { count, lines } => {
+            assert_eq!((count, lines), (2, vec![3, 4]))
+        }
         other => panic!("{other}"),
     }
     let msg = error_of(&text).to_string();
-    assert!(msg.contains("2 edges") && msg.contains("lines 3, 4") && msg.contains("--repair-information"), "{msg}");
-    let (g, r) = read_bytes(text.as_bytes(), &ReadOptions { repair_information: true }).unwrap();
-    assert_eq!((g.num_edges(), r.repaired_information.clone()), (2, vec![3, 4]));
+    assert!(
+        msg.contains("2 edges")
+            && msg.contains("lines 3, 4")
+            && msg.contains("--repair-information"),
+        "{msg}"
+    );
+    let (g, r) = read_bytes(
+        text.as_bytes(),
+        &ReadOptions {
+            repair_information: true,
+        },
+    )
+    .unwrap();
+    assert_eq!(
+        (g.num_edges(), r.repaired_information.clone()),
+        (2, vec![3, 4])
+    );
     for e in g.edges() {
         let m = nalgebra::Matrix3::from_column_slice(e.information());
-        assert!(m.symmetric_eigenvalues().min() > 0.0, "repaired matrix is positive definite");
+        assert!(
+            m.symmetric_eigenvalues().min() > 0.0,
+            "repaired matrix is positive definite"
+        );
     }
 }
 
@@ -131,7 +210,9 @@ fn asymmetric_or_non_finite_information_cannot_be_built() {
 
 #[test]
 fn unknown_tags_and_extra_fields_are_counted_not_fatal() {
-    let text = format!("{TWO}PARAMS_SE2OFFSET 0 1 2 3\nVERTEX_TRACKXYZ 5 1 2 3\nEDGE_SE2 0 1 1 0 0 1 0 0 1 0 1 99 98\n");
+    let text = format!(
+        "{TWO}PARAMS_SE2OFFSET 0 1 2 3\nVERTEX_TRACKXYZ 5 1 2 3\nEDGE_SE2 0 1 1 0 0 1 0 0 1 0 1 99 98\n"
+    );
     let (g, r) = read_bytes(text.as_bytes(), &ReadOptions::default()).unwrap();
     assert_eq!(g.num_edges(), 1);
     assert_eq!(r.unknown_lines(), 2);

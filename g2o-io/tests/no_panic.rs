@@ -10,12 +10,35 @@ VERTEX_SE3:QUAT 3 0 0 0 0 0 0 1\nVERTEX_SE3:QUAT 4 1 0 0 0 0 0 1\n\
 EDGE_SE3:QUAT 3 4 1 0 0 0 0 0 1 1 0 0 0 0 0 1 0 0 0 0 1 0 0 0 1 0 0 1 0 1\n";
 
 const TOKENS: &[&str] = &[
-    "0", "1", "-1", "1e308", "-1e-320", "nan", "inf", "x", "", "VERTEX_SE2", "EDGE_SE2", "FIX", "LANDMARK2",
-    "EDGE_SE3:QUAT", "VERTEX_XY", "#", "99", "0.5", "\t", "\u{e9}",
+    "0",
+    "1",
+    "-1",
+    "1e308",
+    "-1e-320",
+    "nan",
+    "inf",
+    "x",
+    "",
+    "VERTEX_SE2",
+    "EDGE_SE2",
+    "FIX",
+    "LANDMARK2",
+    "EDGE_SE3:QUAT",
+    "VERTEX_XY",
+    "#",
+    "99",
+    "0.5",
+    "\t",
+    "\u{e9}",
 ];
 
 fn accept_anything(bytes: &[u8]) {
-    if let Ok((graph, _)) = read_bytes(bytes, &ReadOptions { repair_information: true }) {
+    if let Ok((graph, _)) = read_bytes(
+        bytes,
+        &ReadOptions {
+            repair_information: true,
+        },
+    ) {
         let text = cairn_g2o::to_string(&graph).expect("built-in types are writable");
         read_bytes(text.as_bytes(), &ReadOptions::default()).expect("what we write reads back");
     }

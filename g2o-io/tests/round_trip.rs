@@ -23,7 +23,10 @@ fn round_trip(text: &str) -> String {
 #[test]
 fn vertex_se2() {
     let out = round_trip("VERTEX_SE2 7 1.2345678901234567 -9.87654321e-12 3.141592653589793\n");
-    assert_eq!(out, "VERTEX_SE2 7 1.2345678901234567 -9.87654321e-12 3.141592653589793\n");
+    assert_eq!(
+        out,
+        "VERTEX_SE2 7 1.2345678901234567 -9.87654321e-12 3.141592653589793\n"
+    );
 }
 
 #[test]
@@ -74,7 +77,10 @@ fn landmark2_becomes_vertex_xy_and_edge_se2_xy() {
     let out = round_trip(text);
     // Landmark 0 lives in its own id space: it becomes vertex max(pose id) + 1 = 2.
     assert!(out.contains("VERTEX_XY 2 2.0 1.0\n"), "{out}");
-    assert!(out.contains("EDGE_SE2_XY 0 2 2.0 1.0 10.0 0.0 10.0\n"), "{out}");
+    assert!(
+        out.contains("EDGE_SE2_XY 0 2 2.0 1.0 10.0 0.0 10.0\n"),
+        "{out}"
+    );
     assert!(out.contains("EDGE_SE2_XY 1 2 1.0 1.0"), "{out}");
 }
 

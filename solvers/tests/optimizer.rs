@@ -1,0 +1,234 @@
+//! Behaviour of the optimiser: gauge, fixed vertices, failure modes and
+//! recovery, determinism, reuse.
+
+use cairn_core::{BinaryEdge, EdgeSE2, EdgeSE2XY, Graph, SE2};
+use cairn_solvers::{Algorithm, Optimizer, SolveError, SolverConfig, Termination, optimize};
+use nalgebra::{Matrix1, Matrix2, Matrix3, Vector1, Vector2};
+use rand::rngs::StdRng;
+use rand::{Rng, SeedableRng};
+
+fn config(algorithm: Algorithm) -> SolverConfig {
+    SolverConfig {
+        algorithm,
+        ..Default::default()
+    }
+}
+
+/// A noisy loop of `n` poses with odometry and loop closures.
+fn noisy_loop(n: i64, seed: u64) -> Graph {
+    let mut rng = StdRng::seed_from_u64(seed);
+    let mut g = Graph::new();
+    let step = SE2::new(1.0, 0.0, 2.0 * std::f64::consts::PI / n as f64);
+    let mut truth = SE2::identity();
+    for i in 0..n {
+        let noise = SE2::new(
+            rng.random_range(-0.3..0.3),
+            rng.random_range(-0.3..0.3),
+            rng.random_range(-0.1..0.1),
+        );
+        g.add_vertex(i, truth.compose(&noise)).unwrap();
+        truth = truth.compose(&step);
+    }
+    let info = Matrix3::from_diagonal(&nalgebra::Vector3::new(100.0, 100.0, 1000.0));
+    for i in 0..n {
+        g.add_edge(i, (i + 1) % n, EdgeSE2::new(step), info)
+            .unwrap();
+        if i + 3 < n {
+            g.add_edge(
+                i,
+                i + 3,
+                EdgeSE2::new(step.compose(&step).compose(&step)),
+                info,
+            )
+            .unwrap();
+        }
+    }
+    g
+}
+
+#[test]
+fn gn_and_lm_close_a_consistent_loop() {
+    for algorithm in [Algorithm::GaussNewton, Algorithm::LevenbergMarquardt] {
+        let mut g = noisy_loop(40, 1);
+        let s = optimize(&mut g, config(algorithm)).unwrap();
+        assert!(
+            s.termination.converged(),
+            "{algorithm:?}: {:?}",
+            s.termination
+        );
+        assert!(
+            s.final_chi2 < 1e-12 * s.initial_chi2.max(1.0),
+            "{algorithm:?}: {}",
+            s.final_chi2
+        );
+        assert_eq!(s.gauge, vec![0]);
+        assert_eq!(s.iterations, s.trace.len());
+        assert!(
+            s.trace
+                .iter()
+                .all(|t| t.phases.factorize >= 0.0 && t.time >= 0.0)
+        );
+        assert_eq!(s.trace.last().map(|t| t.chi2), Some(s.final_chi2));
+    }
+}
+
+#[test]
+fn fixed_vertices_do_not_move() {
+    let mut g = noisy_loop(20, 2);
+    g.set_fixed(5, true).unwrap();
+    let before: SE2 = g.value(5).unwrap();
+    let s = optimize(&mut g, SolverConfig::default()).unwrap();
+    assert!(s.gauge.is_empty(), "a FIX vertex is the gauge");
+    assert_eq!(g.value::<SE2, 3>(5).unwrap(), before);
+}
+
+#[test]
+fn disconnected_components_each_get_a_gauge() {
+    let mut g = noisy_loop(10, 3);
+    for i in 100..103 {
+        g.add_vertex(i, SE2::new(i as f64, 0.0, 0.0)).unwrap();
+    }
+    g.add_edge(
+        100,
+        101,
+        EdgeSE2::new(SE2::new(1.0, 0.1, 0.0)),
+        Matrix3::identity(),
+    )
+    .unwrap();
+    g.add_edge(
+        101,
+        102,
+        EdgeSE2::new(SE2::new(1.0, 0.1, 0.0)),
+        Matrix3::identity(),
+    )
+    .unwrap();
+    g.add_vertex(200, Vector2::new(1.0, 1.0)).unwrap(); // isolated landmark
+    let s = optimize(&mut g, SolverConfig::default()).unwrap();
+    assert_eq!(s.components, 3);
+    assert_eq!(s.gauge, vec![0, 100, 200]);
+    assert!(s.termination.converged());
+}
+
+/// Range-only observation: one equation for a 2D point, so H is singular.
+#[derive(Clone, Debug)]
+struct Range(f64);
+
+impl BinaryEdge<1, 3, 2> for Range {
+    type V1 = SE2;
+    type V2 = Vector2<f64>;
+    const NAME: &'static str = "RANGE";
+    fn error(&self, x: &SE2, l: &Vector2<f64>) -> Vector1<f64> {
+        Vector1::new((l - x.t).norm() - self.0)
+    }
+}
+
+#[test]
+fn a_singular_hessian_ends_gn_and_makes_lm_raise_lambda() {
+    let build = || {
+        let mut g = Graph::new();
+        g.add_vertex(0, SE2::identity()).unwrap();
+        g.add_vertex(1, Vector2::new(3.0, 1.0)).unwrap();
+        g.add_edge(0, 1, Range(2.0), Matrix1::new(1.0)).unwrap();
+        g
+    };
+    let mut g = build();
+    let s = optimize(&mut g, config(Algorithm::GaussNewton)).unwrap();
+    assert_eq!(s.termination, Termination::NotPositiveDefinite);
+    assert_eq!(s.final_chi2, s.initial_chi2, "GN keeps the last estimate");
+
+    let mut g = build();
+    let s = optimize(&mut g, config(Algorithm::LevenbergMarquardt)).unwrap();
+    assert!(s.termination.converged(), "{:?}", s.termination);
+    assert!(s.final_chi2 < 1e-10);
+    let l: Vector2<f64> = g.value(1).unwrap();
+    assert!((l.norm() - 2.0).abs() < 1e-5);
+}
+
+#[test]
+fn non_finite_initial_chi2_names_the_edge() {
+    let mut g = Graph::new();
+    g.add_vertex(0, SE2::new(1e308, 0.0, 0.0)).unwrap();
+    g.add_vertex(1, SE2::new(-1e308, 0.0, 0.0)).unwrap();
+    g.add_vertex(2, Vector2::new(0.0, 0.0)).unwrap();
+    g.add_edge(0, 2, EdgeSE2XY::new(Vector2::zeros()), Matrix2::identity())
+        .unwrap();
+    g.add_edge(0, 1, EdgeSE2::new(SE2::identity()), Matrix3::identity())
+        .unwrap();
+    match optimize(&mut g, SolverConfig::default()) {
+        Err(SolveError::NonFiniteChi2 { name, vertices, .. }) => {
+            assert_eq!(name, "EDGE_SE2_XY");
+            assert_eq!(vertices, vec![0, 2]);
+        }
+        other => panic!("{other:?}"),
+    }
+}
+
+#[test]
+fn everything_fixed_is_nothing_to_optimize() {
+    let mut g = noisy_loop(5, 4);
+    for i in 0..5 {
+        g.set_fixed(i, true).unwrap();
+    }
+    let s = optimize(&mut g, SolverConfig::default()).unwrap();
+    assert_eq!(s.termination, Termination::NothingToOptimize);
+    assert_eq!(s.iterations, 0);
+}
+
+#[test]
+fn results_do_not_depend_on_the_number_of_threads() {
+    let run = |threads: usize, algorithm: Algorithm| {
+        let pool = rayon::ThreadPoolBuilder::new()
+            .num_threads(threads)
+            .build()
+            .unwrap();
+        pool.install(|| {
+            let mut g = noisy_loop(3000, 5);
+            let s = optimize(&mut g, config(algorithm)).unwrap();
+            (
+                g.values().params().to_vec(),
+                s.trace.iter().map(|t| t.chi2.to_bits()).collect::<Vec<_>>(),
+            )
+        })
+    };
+    for algorithm in [Algorithm::GaussNewton, Algorithm::LevenbergMarquardt] {
+        let one = run(1, algorithm);
+        assert_eq!(one, run(2, algorithm), "{algorithm:?}");
+        assert_eq!(one, run(3, algorithm), "{algorithm:?}");
+    }
+}
+
+#[test]
+fn an_optimizer_is_reused_and_refuses_a_changed_graph() {
+    let mut g = noisy_loop(30, 6);
+    let mut opt = Optimizer::new(&g, SolverConfig::default()).unwrap();
+    let first = opt.optimize(&mut g).unwrap();
+    let again = opt.optimize(&mut g).unwrap();
+    assert!(
+        again.iterations <= 2
+            && (again.final_chi2 - first.final_chi2).abs() <= 1e-9 * first.final_chi2.max(1e-300)
+    );
+    g.add_vertex(99, SE2::identity()).unwrap();
+    assert_eq!(opt.optimize(&mut g).unwrap_err(), SolveError::GraphChanged);
+}
+
+#[test]
+fn lm_follows_g2o_lambda_schedule() {
+    // λ starts at 1e-5 × max diag(H) and shrinks by at most 3 after a good step.
+    let mut g = noisy_loop(50, 7);
+    let s = optimize(&mut g, config(Algorithm::LevenbergMarquardt)).unwrap();
+    let lambdas: Vec<f64> = s.trace.iter().filter_map(|t| t.lambda).collect();
+    assert!(!lambdas.is_empty());
+    for w in s.trace.windows(2) {
+        if w[1].trials == 1 {
+            let ratio = w[1].lambda.unwrap() / w[0].lambda.unwrap();
+            assert!(
+                (1.0 / 3.0 - 1e-12..=2.0 / 3.0 + 1e-12).contains(&ratio),
+                "λ ratio {ratio}"
+            );
+        }
+    }
+    assert!(
+        s.trace.windows(2).all(|w| w[1].chi2 <= w[0].chi2),
+        "LM never accepts an increase"
+    );
+}

@@ -1,0 +1,197 @@
+//! The `cairn` command line, run as a user would.
+
+mod common;
+
+use std::path::{Path, PathBuf};
+use std::process::{Command, Output, Stdio};
+
+fn cairn(args: &[&str]) -> Output {
+    Command::new(env!("CARGO_BIN_EXE_cairn"))
+        .args(args)
+        .output()
+        .expect("runs")
+}
+
+fn temp_dir(name: &str) -> PathBuf {
+    let dir = std::env::temp_dir().join(format!("cairn-cli-{name}-{}", std::process::id()));
+    let _ = std::fs::remove_dir_all(&dir);
+    std::fs::create_dir_all(&dir).unwrap();
+    dir
+}
+
+fn s(p: &Path) -> &str {
+    p.to_str().unwrap()
+}
+
+fn stderr(o: &Output) -> String {
+    String::from_utf8_lossy(&o.stderr).into_owned()
+}
+
+#[test]
+fn generate_then_solve_writes_an_optimised_graph() {
+    let dir = temp_dir("gen");
+    let (input, output) = (dir.join("m.g2o"), dir.join("out.g2o"));
+    let o = cairn(&["generate", "manhattan", "-n", "400", "-o", s(&input)]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let o = cairn(&["solve", s(&input), "-o", s(&output), "--json"]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let err = stderr(&o);
+    assert!(
+        err.contains("iteration= 0\t chi2= ")
+            && err.contains("cumTime= ")
+            && err.contains("edges= "),
+        "{err}"
+    );
+    let json: serde_json::Value = serde_json::from_slice(&o.stdout).unwrap();
+    let (initial, last) = (
+        json["summary"]["initial_chi2"].as_f64().unwrap(),
+        json["summary"]["final_chi2"].as_f64().unwrap(),
+    );
+    assert!(last < 0.01 * initial, "{initial} → {last}");
+    assert_eq!(json["vertices"], 400);
+    // The output reads back and is at the optimum.
+    let (mut graph, _) = cairn::g2o::read_file(&output, &Default::default()).unwrap();
+    assert!((graph.chi2() - last).abs() <= 1e-9 * last);
+    let again = cairn::solvers::optimize(&mut graph, Default::default()).unwrap();
+    assert!(again.iterations <= 2);
+    let leftovers: Vec<_> = std::fs::read_dir(&dir)
+        .unwrap()
+        .filter_map(|e| e.ok())
+        .collect();
+    assert_eq!(leftovers.len(), 2, "no temporary files are left behind");
+}
+
+#[test]
+fn stdin_to_stdout() {
+    let text = "VERTEX_SE2 0 0 0 0\nVERTEX_SE2 1 1.5 0.2 0.1\nEDGE_SE2 0 1 1 0 0 1 0 0 1 0 1\n";
+    let mut child = Command::new(env!("CARGO_BIN_EXE_cairn"))
+        .args(["solve", "-", "-o", "-", "-q"])
+        .stdin(Stdio::piped())
+        .stdout(Stdio::piped())
+        .stderr(Stdio::piped())
+        .spawn()
+        .unwrap();
+    use std::io::Write;
+    child
+        .stdin
+        .take()
+        .unwrap()
+        .write_all(text.as_bytes())
+        .unwrap();
+    let o = child.wait_with_output().unwrap();
+    assert!(o.status.success(), "{}", stderr(&o));
+    let out = String::from_utf8(o.stdout).unwrap();
+    assert!(
+        out.starts_with("VERTEX_SE2 0 0.0 0.0 0.0\nVERTEX_SE2 1 1.0"),
+        "{out}"
+    );
+    assert!(o.stderr.is_empty(), "-q prints nothing");
+}
+
+#[test]
+fn errors_name_the_file_and_line_and_exit_non_zero() {
+    let dir = temp_dir("bad");
+    let bad = dir.join("bad.g2o");
+    std::fs::write(&bad, "VERTEX_SE2 0 0 0 0\nEDGE_SE2 0 3 1 0 0 1 0 0 1 0 1\n").unwrap();
+    let out = dir.join("out.g2o");
+    std::fs::write(&out, "precious").unwrap();
+    let o = cairn(&["solve", s(&bad), "-o", s(&out)]);
+    assert_eq!(o.status.code(), Some(1));
+    let err = stderr(&o);
+    assert!(
+        err.contains("bad.g2o: line 2: vertex 3 is not in the graph"),
+        "{err}"
+    );
+    assert!(!err.contains("panicked"));
+    assert_eq!(
+        std::fs::read_to_string(&out).unwrap(),
+        "precious",
+        "a failed run leaves outputs alone"
+    );
+
+    let o = cairn(&["solve", s(&dir.join("missing.g2o"))]);
+    assert_eq!(o.status.code(), Some(1));
+    assert!(stderr(&o).contains("missing.g2o"), "{}", stderr(&o));
+
+    let good = dir.join("good.g2o");
+    std::fs::write(&good, "VERTEX_SE2 0 0 0 0\n").unwrap();
+    let o = cairn(&["solve", s(&good), "--fix", "5"]);
+    assert_eq!(o.status.code(), Some(1));
+    assert!(stderr(&o).contains("--fix: vertex 5 is not in the graph"));
+    let o = cairn(&["solve", s(&good), "-o", "-", "--json"]);
+    assert_eq!(o.status.code(), Some(1));
+    let o = cairn(&["solve", s(&good), "-o", s(&dir.join("no/such/dir/out.g2o"))]);
+    assert_eq!(o.status.code(), Some(1));
+    let o = cairn(&["solve", s(&good), "--solver", "dogleg"]);
+    assert_eq!(o.status.code(), Some(2), "usage errors come from clap");
+}
+
+#[test]
+fn summary_and_stats_csv() {
+    let dir = temp_dir("csv");
+    let input = dir.join("s.g2o");
+    let o = cairn(&["generate", "sphere", "-n", "100", "-o", s(&input)]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let (summary, stats) = (dir.join("summary.csv"), dir.join("stats.csv"));
+    for solver in ["gn", "lm"] {
+        let o = cairn(&[
+            "solve",
+            s(&input),
+            "--solver",
+            solver,
+            "--summary",
+            s(&summary),
+            "--stats",
+            s(&stats),
+            "-q",
+        ]);
+        assert!(o.status.success(), "{}", stderr(&o));
+    }
+    let summary = std::fs::read_to_string(summary).unwrap();
+    let rows: Vec<&str> = summary.lines().collect();
+    assert_eq!(rows.len(), 3, "header plus one row per run:\n{summary}");
+    assert!(rows[0].starts_with("file,algorithm,vertices,edges,initial_chi2,final_chi2"));
+    assert!(rows[1].contains(",gn,100,") && rows[2].contains(",lm,100,"));
+    let stats = std::fs::read_to_string(stats).unwrap();
+    assert!(stats.starts_with("iteration,chi2,lambda,trials"));
+    assert!(stats.lines().count() > 2);
+    assert!(
+        stats
+            .lines()
+            .nth(1)
+            .unwrap()
+            .split(',')
+            .nth(2)
+            .is_some_and(|l| !l.is_empty()),
+        "LM has λ"
+    );
+}
+
+#[test]
+fn fix_holds_vertices_and_cubicle_needs_repair() {
+    let dir = temp_dir("fix");
+    let input = dir.join("m.g2o");
+    assert!(
+        cairn(&["generate", "manhattan", "-n", "200", "-o", s(&input)])
+            .status
+            .success()
+    );
+    let o = cairn(&["solve", s(&input), "--fix", "0,7", "-q", "--json"]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let json: serde_json::Value = serde_json::from_slice(&o.stdout).unwrap();
+    assert_eq!(json["summary"]["gauge"], serde_json::json!([]));
+
+    let Some(cubicle) = common::dataset("3d/cubicle.g2o") else {
+        return;
+    };
+    let o = cairn(&["solve", s(&cubicle), "-i", "1"]);
+    assert_eq!(o.status.code(), Some(1));
+    let err = stderr(&o);
+    assert!(
+        err.contains("5021 edges have information matrices that are not positive definite"),
+        "{err}"
+    );
+    let o = cairn(&["solve", s(&cubicle), "-i", "1", "--repair-information"]);
+    assert!(o.status.success());
+    assert!(stderr(&o).contains("repaired 5021 information matrices"));
+}
