@@ -99,10 +99,11 @@ pub fn manhattan(o: &ManhattanOptions) -> Result<Graph, GraphError> {
         let k = truth.len() - 1;
         odometry.push((k - 1, k));
         let seen = visits.entry((x, y)).or_default();
-        if let Some(&earlier) = seen.first() {
-            if earlier + 2 < k && rng.random_bool(o.loop_probability.clamp(0.0, 1.0)) {
-                closures.push((earlier, k));
-            }
+        if let Some(&earlier) = seen.first()
+            && earlier + 2 < k
+            && rng.random_bool(o.loop_probability.clamp(0.0, 1.0))
+        {
+            closures.push((earlier, k));
         }
         seen.push(k);
     }

@@ -85,7 +85,7 @@ where
 /// Numeric Jacobian of a unary edge.
 pub fn numeric_unary<T, const E: usize, const D: usize>(edge: &T, x: &T::V) -> SMatrix<f64, E, D>
 where
-    T: UnaryEdge<E, D> + ?Sized,
+    T: UnaryEdge<E, D>,
 {
     numeric_jacobian(x, |v| edge.error(v))
 }
@@ -97,7 +97,7 @@ pub fn numeric_binary<T, const E: usize, const D1: usize, const D2: usize>(
     x2: &T::V2,
 ) -> (SMatrix<f64, E, D1>, SMatrix<f64, E, D2>)
 where
-    T: BinaryEdge<E, D1, D2> + ?Sized,
+    T: BinaryEdge<E, D1, D2>,
 {
     (
         numeric_jacobian(x1, |v| edge.error(v, x2)),
