@@ -28,17 +28,26 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     graph.add_vertex(100, Vector2::new(5.0, 5.0))?; // initial guess for the beacon
     // Four surveyed stations (fixed) range it with 1 cm noise.
     let information = Matrix1::new(1.0 / 0.01f64.powi(2));
-    for (id, (x, y)) in [(0.0, 0.0), (10.0, 0.0), (0.0, 10.0), (10.0, 10.0)].into_iter().enumerate() {
+    for (id, (x, y)) in [(0.0, 0.0), (10.0, 0.0), (0.0, 10.0), (10.0, 10.0)]
+        .into_iter()
+        .enumerate()
+    {
         let id = id as i64;
         graph.add_vertex(id, SE2::new(x, y, 0.0))?;
         graph.set_fixed(id, true)?;
         let range = (beacon - Vector2::new(x, y)).norm();
         graph.add_edge(id, 100, Range(range), information)?;
     }
-    let config = SolverConfig { algorithm: Algorithm::LevenbergMarquardt, ..Default::default() };
+    let config = SolverConfig {
+        algorithm: Algorithm::LevenbergMarquardt,
+        ..Default::default()
+    };
     let summary = optimize(&mut graph, config)?;
     let found: Vector2<f64> = graph.value(100)?;
-    println!("{:?} after {} iterations: beacon at ({:.6}, {:.6})", summary.termination, summary.iterations, found.x, found.y);
+    println!(
+        "{:?} after {} iterations: beacon at ({:.6}, {:.6})",
+        summary.termination, summary.iterations, found.x, found.y
+    );
     assert!((found - beacon).norm() < 1e-6);
     Ok(())
 }

@@ -15,19 +15,41 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         Some(path) => PathBuf::from(path),
         None => {
             let path = dir.join("cairn-example-manhattan.g2o");
-            write_file(&manhattan(&ManhattanOptions { poses: 2000, ..Default::default() })?, &path)?;
+            write_file(
+                &manhattan(&ManhattanOptions {
+                    poses: 2000,
+                    ..Default::default()
+                })?,
+                &path,
+            )?;
             path
         }
     };
-    let output = args.get(1).map(PathBuf::from).unwrap_or_else(|| dir.join("cairn-example-solved.g2o"));
+    let output = args
+        .get(1)
+        .map(PathBuf::from)
+        .unwrap_or_else(|| dir.join("cairn-example-solved.g2o"));
 
     let (mut graph, report) = read_file(&input, &ReadOptions::default())?;
-    println!("{}: {} vertices, {} edges, {} unknown lines", input.display(), graph.num_vertices(), graph.num_edges(), report.unknown_lines());
-    let config = SolverConfig { algorithm: Algorithm::LevenbergMarquardt, ..Default::default() };
+    println!(
+        "{}: {} vertices, {} edges, {} unknown lines",
+        input.display(),
+        graph.num_vertices(),
+        graph.num_edges(),
+        report.unknown_lines()
+    );
+    let config = SolverConfig {
+        algorithm: Algorithm::LevenbergMarquardt,
+        ..Default::default()
+    };
     let summary = optimize(&mut graph, config)?;
     println!(
         "{:?} after {} iterations: χ² {:.4} → {:.4} in {:.3} s",
-        summary.termination, summary.iterations, summary.initial_chi2, summary.final_chi2, summary.solve_time
+        summary.termination,
+        summary.iterations,
+        summary.initial_chi2,
+        summary.final_chi2,
+        summary.solve_time
     );
     write_file(&graph, &output)?;
     println!("wrote {}", output.display());

@@ -193,3 +193,36 @@ fn files_without_vertices_are_built_from_edges() {
         assert_eq!(report.landmark_id_offset.is_some(), landmarks > 0, "{file}");
     }
 }
+
+#[test]
+fn every_file_round_trips_exactly() {
+    let Some(dir) = common::shared() else { return };
+    for folder in ["2d", "3d", "landmarks", "parser"] {
+        for entry in std::fs::read_dir(dir.join("datasets").join(folder)).unwrap() {
+            let path = entry.unwrap().path();
+            let opts = ReadOptions {
+                repair_information: true,
+            };
+            let Ok((a, _)) = read_file(&path, &opts) else {
+                panic!("{}", path.display())
+            };
+            let text = cairn::g2o::to_string(&a).unwrap();
+            let (b, report) =
+                cairn::g2o::read_bytes(text.as_bytes(), &ReadOptions::default()).unwrap();
+            assert_eq!(report.unknown_lines(), 0);
+            assert_eq!(
+                a.values().params(),
+                b.values().params(),
+                "{}",
+                path.display()
+            );
+            assert_eq!(
+                text,
+                cairn::g2o::to_string(&b).unwrap(),
+                "{}",
+                path.display()
+            );
+            assert_eq!(a.chi2().to_bits(), b.chi2().to_bits(), "{}", path.display());
+        }
+    }
+}
