@@ -7,6 +7,7 @@ use cairn_core::{BinaryEdge, EdgePriorSE2, EdgeSE2, EdgeSE2XY, EdgeSE3, SE2, SE3
 use nalgebra::{DMatrix, SMatrix, UnitQuaternion, Vector2, Vector3};
 use rand::rngs::StdRng;
 use rand::{Rng, SeedableRng};
+use std::f64::consts::PI;
 
 const STATES: usize = 1000;
 
@@ -14,7 +15,7 @@ fn se2(rng: &mut StdRng) -> SE2 {
     SE2::new(
         rng.random_range(-20.0..20.0),
         rng.random_range(-20.0..20.0),
-        rng.random_range(-3.14..3.14),
+        rng.random_range(-PI..PI),
     )
 }
 
