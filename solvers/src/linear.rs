@@ -28,9 +28,12 @@ pub enum Factorization {
 /// Fill-reducing ordering.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize, Deserialize)]
 pub enum Ordering {
-    /// Approximate minimum degree.
+    /// Approximate minimum degree on the scalar pattern.
     #[default]
     Amd,
+    /// Approximate minimum degree on the vertex (block) graph, each vertex's
+    /// columns kept together.
+    BlockAmd,
     /// The vertex order as it is.
     Identity,
 }
@@ -55,6 +58,41 @@ pub struct NotPositiveDefinite {
     pub pivot: usize,
 }
 
+/// AMD on the block graph, expanded to a scalar permutation (forward, inverse).
+fn block_amd(
+    blocks: SymbolicSparseColMatRef<'_, usize>,
+    dims: &[usize],
+) -> Result<(Vec<usize>, Vec<usize>), SolveError> {
+    let n = dims.len();
+    let (mut perm, mut perm_inv) = (vec![0usize; n], vec![0usize; n]);
+    let nnz = blocks.row_idx().len();
+    let mut scratch = MemBuffer::try_new(faer::sparse::linalg::amd::order_scratch::<usize>(n, nnz))
+        .map_err(|_| SolveError::OutOfMemory)?;
+    faer::sparse::linalg::amd::order(
+        &mut perm,
+        &mut perm_inv,
+        blocks,
+        Default::default(),
+        MemStack::new(&mut scratch),
+    )
+    .map_err(|e| SolveError::Analysis(format!("{e:?}")))?;
+    let mut start = Vec::with_capacity(n);
+    let mut total = 0;
+    for &d in dims {
+        start.push(total);
+        total += d;
+    }
+    let forward: Vec<usize> = perm
+        .iter()
+        .flat_map(|&b| start[b]..start[b] + dims[b])
+        .collect();
+    let mut inverse = vec![0usize; total];
+    for (i, &f) in forward.iter().enumerate() {
+        inverse[f] = i;
+    }
+    Ok((forward, inverse))
+}
+
 /// A sparse Cholesky solver bound to one sparsity pattern.
 pub struct SparseCholesky {
     symbolic: SymbolicCholesky<usize>,
@@ -73,9 +111,12 @@ impl std::fmt::Debug for SparseCholesky {
 }
 
 impl SparseCholesky {
-    /// Symbolic analysis (ordering and elimination structure) of the upper triangle.
+    /// Symbolic analysis (ordering and elimination structure) of the upper
+    /// triangle `pattern`, whose block structure is `blocks` (the pattern of one
+    /// row and column per vertex, and each vertex's dimension).
     pub fn analyze(
         pattern: SymbolicSparseColMatRef<'_, usize>,
+        blocks: (SymbolicSparseColMatRef<'_, usize>, &[usize]),
         config: &LinearSolverConfig,
     ) -> Result<Self, SolveError> {
         let threshold = match config.factorization {
@@ -83,9 +124,16 @@ impl SparseCholesky {
             Factorization::Simplicial => SupernodalThreshold::FORCE_SIMPLICIAL,
             Factorization::Supernodal => SupernodalThreshold::FORCE_SUPERNODAL,
         };
-        let ordering = match config.ordering {
-            Ordering::Amd => SymmetricOrdering::Amd,
-            Ordering::Identity => SymmetricOrdering::Identity,
+        let block_perm = match config.ordering {
+            Ordering::BlockAmd => Some(block_amd(blocks.0, blocks.1)?),
+            _ => None,
+        };
+        let ordering = match (config.ordering, &block_perm) {
+            (Ordering::BlockAmd, Some((fwd, inv))) => {
+                SymmetricOrdering::Custom(faer::perm::PermRef::new_checked(fwd, inv, fwd.len()))
+            }
+            (Ordering::Identity, _) => SymmetricOrdering::Identity,
+            _ => SymmetricOrdering::Amd,
         };
         let params = CholeskySymbolicParams {
             supernodal_flop_ratio_threshold: threshold,

@@ -65,6 +65,11 @@ pub struct HessianStructure {
     pub pattern: SymbolicSparseColMat<usize>,
     /// Index into the values of each diagonal entry (for LM damping).
     pub diagonal: Vec<usize>,
+    /// Pattern of the upper block triangle: one row and column per free vertex,
+    /// in column order (for block-level fill-reducing orderings).
+    pub block_pattern: SymbolicSparseColMat<usize>,
+    /// Tangent dimension of each free vertex, in column order.
+    pub block_dims: Vec<usize>,
     /// Start of each factor group's region in the linearisation buffer.
     pub group_offset: Vec<usize>,
     /// Length of the linearisation buffer.
@@ -106,6 +111,17 @@ impl HessianStructure {
                 }
             }
         }
+        let mut block_col_ptr = vec![0usize];
+        let mut block_row_idx = Vec::new();
+        let block_of: Vec<usize> = {
+            let mut b = vec![usize::MAX; n];
+            let mut order: Vec<usize> = (0..n).filter(|&v| column[v].is_some()).collect();
+            order.sort_by_key(|&v| column[v]);
+            for (k, &v) in order.iter().enumerate() {
+                b[v] = k;
+            }
+            b
+        };
         let mut col_ptr = Vec::with_capacity(dim + 1);
         let mut row_idx = Vec::new();
         // Offset, within each of a block column's scalar columns, of each block row.
@@ -118,6 +134,8 @@ impl HessianStructure {
             rows.sort_unstable_by_key(|&r| column[r]);
             rows.dedup();
             let cb = column[b].unwrap_or(0);
+            block_row_idx.extend(rows.iter().map(|&r| block_of[r]));
+            block_col_ptr.push(block_row_idx.len());
             let mut pos = 0;
             for &r in rows.iter() {
                 block_pos[b].push((r, pos));
@@ -206,10 +224,16 @@ impl HessianStructure {
         }
         let nnz = row_idx.len();
         let pattern = SymbolicSparseColMat::new_checked(dim, dim, col_ptr, None, row_idx);
+        let blocks = free.len();
+        let block_pattern =
+            SymbolicSparseColMat::new_checked(blocks, blocks, block_col_ptr, None, block_row_idx);
+        let block_dims = free.iter().map(|&v| vdim[v]).collect();
         Ok(Self {
             column,
             dim,
             pattern,
+            block_pattern,
+            block_dims,
             diagonal,
             group_offset,
             buffer_len,

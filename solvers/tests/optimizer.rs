@@ -232,3 +232,20 @@ fn lm_follows_g2o_lambda_schedule() {
         "LM never accepts an increase"
     );
 }
+
+#[test]
+fn every_ordering_and_factorization_gives_the_same_optimum() {
+    use cairn_solvers::{Factorization, LinearSolverConfig, Ordering};
+    let mut reference = None;
+    for ordering in [Ordering::Amd, Ordering::BlockAmd, Ordering::Identity] {
+        for factorization in [Factorization::Auto, Factorization::Simplicial, Factorization::Supernodal] {
+            let mut g = noisy_loop(200, 8);
+            g.add_vertex(1000, Vector2::new(3.0, 3.0)).unwrap();
+            g.add_edge(10, 1000, EdgeSE2XY::new(Vector2::new(1.0, 2.0)), Matrix2::identity()).unwrap();
+            let linear = LinearSolverConfig { ordering, factorization, ..Default::default() };
+            let s = optimize(&mut g, SolverConfig { linear, ..Default::default() }).unwrap();
+            let chi2 = *reference.get_or_insert(s.final_chi2);
+            assert!((s.final_chi2 - chi2).abs() <= 1e-9 * chi2.max(1e-12), "{ordering:?} {factorization:?}");
+        }
+    }
+}

@@ -2,7 +2,8 @@
 
 use cairn::g2o::{LoadReport, ReadOptions};
 use cairn::solvers::{
-    Algorithm, Factorization, IterationStats, LinearSolverConfig, Optimizer, SolverConfig, Summary,
+    Algorithm, Factorization, IterationStats, LinearSolverConfig, Optimizer, Ordering,
+    SolverConfig, Summary,
 };
 use clap::{Args, ValueEnum};
 use std::fmt::Write as _;
@@ -16,6 +17,16 @@ enum SolverName {
     Gn,
     /// Levenberg-Marquardt.
     Lm,
+}
+
+#[derive(Clone, Copy, Debug, PartialEq, Eq, ValueEnum)]
+enum OrderingName {
+    /// Approximate minimum degree on the scalar pattern.
+    Amd,
+    /// Approximate minimum degree on the vertex graph.
+    BlockAmd,
+    /// No reordering.
+    Identity,
 }
 
 #[derive(Clone, Copy, Debug, PartialEq, Eq, ValueEnum)]
@@ -55,6 +66,9 @@ pub struct SolveArgs {
     /// Cholesky variant.
     #[arg(long, value_enum, default_value = "auto")]
     factorization: FactorizationName,
+    /// Fill-reducing ordering.
+    #[arg(long, value_enum, default_value = "amd")]
+    ordering: OrderingName,
     /// Worker threads (0: one per core).
     #[arg(long, default_value_t = 0)]
     threads: usize,
@@ -232,6 +246,11 @@ pub fn run(a: SolveArgs) -> Result<(), String> {
                 FactorizationName::Auto => Factorization::Auto,
                 FactorizationName::Simplicial => Factorization::Simplicial,
                 FactorizationName::Supernodal => Factorization::Supernodal,
+            },
+            ordering: match a.ordering {
+                OrderingName::Amd => Ordering::Amd,
+                OrderingName::BlockAmd => Ordering::BlockAmd,
+                OrderingName::Identity => Ordering::Identity,
             },
             ..Default::default()
         },
