@@ -181,6 +181,22 @@ fn fix_holds_vertices_and_cubicle_needs_repair() {
     let json: serde_json::Value = serde_json::from_slice(&o.stdout).unwrap();
     assert_eq!(json["summary"]["gauge"], serde_json::json!([]));
 
+    let o = cairn(&["solve", s(&input), "--marginals", "5,150", "--json"]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    assert!(stderr(&o).contains("marginal covariance of vertex 150:"));
+    let json: serde_json::Value = serde_json::from_slice(&o.stdout).unwrap();
+    let m = &json["marginals"][1]["covariance"];
+    assert_eq!(
+        (
+            json["marginals"][1]["vertex"].as_i64(),
+            m.as_array().map(|r| r.len())
+        ),
+        (Some(150), Some(3))
+    );
+    assert!(m[0][0].as_f64().unwrap() > 0.0 && m[0][1] == m[1][0]);
+    let o = cairn(&["solve", s(&input), "--marginals", "0"]);
+    assert!(stderr(&o).contains("vertex 0 is fixed"), "{}", stderr(&o));
+
     let Some(cubicle) = common::dataset("3d/cubicle.g2o") else {
         return;
     };

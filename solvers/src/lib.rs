@@ -27,6 +27,7 @@
 
 pub mod config;
 pub mod linear;
+pub mod marginals;
 pub mod optimizer;
 pub mod structure;
 
@@ -64,6 +65,18 @@ pub enum SolveError {
     /// No memory for the factorisation's workspace.
     #[error("not enough memory for the factorisation")]
     OutOfMemory,
+    /// An id that names no vertex.
+    #[error("vertex {0} is not in the graph")]
+    UnknownVertex(i64),
+    /// A marginal was asked of a fixed vertex (a FIX vertex or the gauge).
+    #[error("vertex {0} is fixed, so it has no marginal covariance")]
+    FixedVertex(i64),
+    /// H is not positive definite at the current estimate.
+    #[error("the Hessian is not positive definite at the current estimate (pivot {0})")]
+    NotPositiveDefinite(usize),
+    /// Every vertex is fixed.
+    #[error("every vertex is fixed: there is no system to solve")]
+    NothingToSolve,
     /// More entries than 32-bit indices address.
     #[error("the problem is too large: {entries} entries exceed the 32-bit index range")]
     TooLarge {

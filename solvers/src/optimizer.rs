@@ -175,6 +175,41 @@ impl Optimizer {
         Ok(summary)
     }
 
+    /// (vertices, edges) of the graph this optimizer was built for.
+    pub(crate) fn shape(&self) -> (usize, usize) {
+        self.shape
+    }
+
+    /// First column of vertex index `v` in H, `None` if it is fixed.
+    pub(crate) fn column(&self, v: usize) -> Option<usize> {
+        self.structure.column[v]
+    }
+
+    /// Dimension of H.
+    pub(crate) fn dimension(&self) -> usize {
+        self.structure.dim
+    }
+
+    /// Linearises and assembles H and the gradient at the graph's values.
+    pub(crate) fn relinearize(&mut self, graph: &Graph, phases: &mut PhaseTimes) -> f64 {
+        self.linearize(graph, phases)
+    }
+
+    /// Factorises the assembled H without damping.
+    pub(crate) fn factorize_undamped(&mut self) -> Result<(), SolveError> {
+        let cholesky = self.cholesky.as_mut().ok_or(SolveError::NothingToSolve)?;
+        cholesky
+            .factorize(self.structure.pattern.as_ref(), &self.hessian)
+            .map_err(|e| SolveError::NotPositiveDefinite(e.pivot))
+    }
+
+    /// Solves H x = rhs with the last factorisation.
+    pub(crate) fn solve_factorized(&mut self, rhs: &mut [f64]) {
+        if let Some(c) = self.cholesky.as_mut() {
+            c.solve_in_place(rhs);
+        }
+    }
+
     /// Linearises every edge and assembles H and the gradient; returns χ².
     fn linearize(&mut self, graph: &Graph, phases: &mut PhaseTimes) -> f64 {
         let t = Instant::now();

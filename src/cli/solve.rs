@@ -72,6 +72,10 @@ pub struct SolveArgs {
     /// Worker threads (0: one per core).
     #[arg(long, default_value_t = 0)]
     threads: usize,
+    /// Print the marginal covariances of these vertex ids (comma-separated) at
+    /// the optimum, in each vertex's tangent coordinates (SE2: x, y, θ).
+    #[arg(long, value_delimiter = ',')]
+    marginals: Vec<i64>,
     /// Append a one-line CSV summary of the run to this file (header if new).
     #[arg(long)]
     summary: Option<PathBuf>,
@@ -268,6 +272,19 @@ pub fn run(a: SolveArgs) -> Result<(), String> {
         .map_err(|e| format!("{name}: {e}"))?;
     let solve = t.elapsed().as_secs_f64();
 
+    let marginals = if a.marginals.is_empty() {
+        Vec::new()
+    } else {
+        optimizer
+            .marginals(&graph, &a.marginals)
+            .map_err(|e| format!("--marginals: {e}"))?
+    };
+    if !a.quiet {
+        for (id, m) in a.marginals.iter().zip(&marginals) {
+            eprint!("marginal covariance of vertex {id}:{m}");
+        }
+    }
+
     let t = Instant::now();
     if let Some(out) = &a.output {
         let text = cairn::g2o::to_string(&graph).map_err(|e| e.to_string())?;
@@ -315,6 +332,10 @@ pub fn run(a: SolveArgs) -> Result<(), String> {
             "edges": edges,
             "load": report_json(&report),
             "summary": summary,
+            "marginals": a.marginals.iter().zip(&marginals).map(|(id, m)| serde_json::json!({
+                "vertex": id,
+                "covariance": m.row_iter().map(|r| r.iter().copied().collect::<Vec<f64>>()).collect::<Vec<_>>(),
+            })).collect::<Vec<_>>(),
             "load_s": load,
             "solve_s": solve,
             "write_s": write,
