@@ -122,7 +122,7 @@ fn errors_name_the_file_and_line_and_exit_non_zero() {
     assert_eq!(o.status.code(), Some(1));
     let o = cairn(&["solve", s(&good), "-o", s(&dir.join("no/such/dir/out.g2o"))]);
     assert_eq!(o.status.code(), Some(1));
-    let o = cairn(&["solve", s(&good), "--solver", "dogleg"]);
+    let o = cairn(&["solve", s(&good), "--solver", "newton"]);
     assert_eq!(o.status.code(), Some(2), "usage errors come from clap");
 }
 
@@ -153,7 +153,7 @@ fn summary_and_stats_csv() {
     assert!(rows[0].starts_with("file,algorithm,vertices,edges,initial_chi2,final_chi2"));
     assert!(rows[1].contains(",gn,100,") && rows[2].contains(",lm,100,"));
     let stats = std::fs::read_to_string(stats).unwrap();
-    assert!(stats.starts_with("iteration,chi2,lambda,trials"));
+    assert!(stats.starts_with("iteration,chi2,lambda,radius,trials"));
     assert!(stats.lines().count() > 2);
     assert!(
         stats

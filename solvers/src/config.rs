@@ -17,6 +17,9 @@ pub enum Algorithm {
     GaussNewton,
     /// Levenberg-Marquardt with g2o's damping H + λI and its λ schedule.
     LevenbergMarquardt,
+    /// Powell's dogleg: a trust region mixing the Gauss-Newton and the
+    /// steepest-descent steps.
+    Dogleg,
 }
 
 impl Algorithm {
@@ -25,6 +28,7 @@ impl Algorithm {
         match self {
             Algorithm::GaussNewton => "gn",
             Algorithm::LevenbergMarquardt => "lm",
+            Algorithm::Dogleg => "dogleg",
         }
     }
 }
@@ -47,6 +51,24 @@ impl Default for LevenbergMarquardtConfig {
     }
 }
 
+/// Options of Powell's dogleg.
+#[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
+pub struct DoglegConfig {
+    /// Initial trust-region radius (Euclidean norm of the step). Default 1e4, as g2o.
+    pub initial_radius: f64,
+    /// Rejected steps in a row, with the radius halved each time, before giving up. Default 10.
+    pub max_trials: usize,
+}
+
+impl Default for DoglegConfig {
+    fn default() -> Self {
+        Self {
+            initial_radius: 1e4,
+            max_trials: 10,
+        }
+    }
+}
+
 /// Options of [`crate::Optimizer`].
 #[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
 pub struct SolverConfig {
@@ -63,6 +85,8 @@ pub struct SolverConfig {
     pub step_tolerance: f64,
     /// Levenberg-Marquardt options.
     pub lm: LevenbergMarquardtConfig,
+    /// Dogleg options.
+    pub dogleg: DoglegConfig,
     /// Linear solver options.
     pub linear: LinearSolverConfig,
 }
@@ -76,6 +100,7 @@ impl Default for SolverConfig {
             gradient_tolerance: 1e-10,
             step_tolerance: 1e-12,
             lm: LevenbergMarquardtConfig::default(),
+            dogleg: DoglegConfig::default(),
             linear: LinearSolverConfig::default(),
         }
     }
@@ -92,9 +117,10 @@ pub enum Termination {
     StepSize,
     /// `max_iterations` done.
     MaxIterations,
-    /// LM: `max_trials` rejected steps in a row; the estimate is the best found.
+    /// LM or dogleg: `max_trials` rejected steps in a row; the estimate is the best found.
     NoImprovement,
-    /// GN: the Hessian was not positive definite; the estimate is the last one.
+    /// GN or dogleg: the Hessian was not positive definite (dogleg: even damped);
+    /// the estimate is the last one.
     NotPositiveDefinite,
     /// χ² became NaN or infinite after a GN step; the estimate is the last one.
     NonFinite,
@@ -154,6 +180,8 @@ pub struct IterationStats {
     pub chi2: f64,
     /// λ after the iteration (LM only).
     pub lambda: Option<f64>,
+    /// Trust-region radius after the iteration (dogleg only).
+    pub radius: Option<f64>,
     /// Steps tried (LM: 1 + rejected steps).
     pub trials: usize,
     /// Largest absolute gradient component at the linearisation point.

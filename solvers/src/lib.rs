@@ -32,8 +32,8 @@ pub mod optimizer;
 pub mod structure;
 
 pub use config::{
-    Algorithm, IterationStats, LevenbergMarquardtConfig, PhaseTimes, SolverConfig, Summary,
-    Termination,
+    Algorithm, DoglegConfig, IterationStats, LevenbergMarquardtConfig, PhaseTimes, SolverConfig,
+    Summary, Termination,
 };
 pub use linear::{
     Factorization, LinearSolverConfig, NotPositiveDefinite, Ordering, SparseCholesky,

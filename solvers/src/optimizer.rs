@@ -7,6 +7,8 @@ use crate::structure::HessianStructure;
 use cairn_core::{Graph, VertexId};
 use std::time::Instant;
 
+mod dogleg;
+
 /// Seconds since `t`.
 fn since(t: Instant) -> f64 {
     t.elapsed().as_secs_f64()
@@ -164,6 +166,7 @@ impl Optimizer {
             Algorithm::LevenbergMarquardt => {
                 self.levenberg_marquardt(graph, &mut summary, start, on_iteration)
             }
+            Algorithm::Dogleg => self.dogleg(graph, &mut summary, start, on_iteration),
         };
         summary.termination = termination;
         summary.iterations = summary.trace.len();
@@ -329,6 +332,7 @@ impl Optimizer {
                 iteration,
                 chi2,
                 lambda: None,
+                radius: None,
                 trials: 1,
                 gradient_max,
                 step_max: max_abs(&self.step),
@@ -415,6 +419,7 @@ impl Optimizer {
                     iteration,
                     chi2,
                     lambda: Some(lambda),
+                    radius: None,
                     trials,
                     gradient_max,
                     step_max: 0.0,
@@ -439,6 +444,7 @@ impl Optimizer {
                 iteration,
                 chi2,
                 lambda: Some(lambda),
+                radius: None,
                 trials,
                 gradient_max,
                 step_max: max_abs(&self.step),

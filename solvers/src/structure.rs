@@ -258,6 +258,21 @@ impl HessianStructure {
         self.gradient.apply(buffer, gradient);
     }
 
+    /// `out = H·x` for the symmetric H whose upper triangle is `values`.
+    pub fn hessian_times(&self, values: &[f64], x: &[f64], out: &mut [f64]) {
+        out.iter_mut().for_each(|o| *o = 0.0);
+        let (col_ptr, row_idx) = (self.pattern.col_ptr(), self.pattern.row_idx());
+        for j in 0..self.dim {
+            for k in col_ptr[j]..col_ptr[j + 1] {
+                let (i, v) = (row_idx[k], values[k]);
+                out[i] += v * x[j];
+                if i != j {
+                    out[j] += v * x[i];
+                }
+            }
+        }
+    }
+
     /// Total χ² stored in the buffer by the last linearisation (deterministic order).
     pub fn chi2(&self, buffer: &[f64]) -> f64 {
         cairn_core::factor::deterministic_sum(self.chi2_slots.len(), |k| {

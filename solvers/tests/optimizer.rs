@@ -47,8 +47,12 @@ fn noisy_loop(n: i64, seed: u64) -> Graph {
 }
 
 #[test]
-fn gn_and_lm_close_a_consistent_loop() {
-    for algorithm in [Algorithm::GaussNewton, Algorithm::LevenbergMarquardt] {
+fn gn_lm_and_dogleg_close_a_consistent_loop() {
+    for algorithm in [
+        Algorithm::GaussNewton,
+        Algorithm::LevenbergMarquardt,
+        Algorithm::Dogleg,
+    ] {
         let mut g = noisy_loop(40, 1);
         let s = optimize(&mut g, config(algorithm)).unwrap();
         assert!(
@@ -123,7 +127,7 @@ impl BinaryEdge<1, 3, 2> for Range {
 }
 
 #[test]
-fn a_singular_hessian_ends_gn_and_makes_lm_raise_lambda() {
+fn a_singular_hessian_ends_gn_and_is_damped_by_lm_and_dogleg() {
     let build = || {
         let mut g = Graph::new();
         g.add_vertex(0, SE2::identity()).unwrap();
@@ -136,12 +140,18 @@ fn a_singular_hessian_ends_gn_and_makes_lm_raise_lambda() {
     assert_eq!(s.termination, Termination::NotPositiveDefinite);
     assert_eq!(s.final_chi2, s.initial_chi2, "GN keeps the last estimate");
 
-    let mut g = build();
-    let s = optimize(&mut g, config(Algorithm::LevenbergMarquardt)).unwrap();
-    assert!(s.termination.converged(), "{:?}", s.termination);
-    assert!(s.final_chi2 < 1e-10);
-    let l: Vector2<f64> = g.value(1).unwrap();
-    assert!((l.norm() - 2.0).abs() < 1e-5);
+    for algorithm in [Algorithm::LevenbergMarquardt, Algorithm::Dogleg] {
+        let mut g = build();
+        let s = optimize(&mut g, config(algorithm)).unwrap();
+        assert!(
+            s.termination.converged(),
+            "{algorithm:?}: {:?}",
+            s.termination
+        );
+        assert!(s.final_chi2 < 1e-10, "{algorithm:?}");
+        let l: Vector2<f64> = g.value(1).unwrap();
+        assert!((l.norm() - 2.0).abs() < 1e-5, "{algorithm:?}");
+    }
 }
 
 #[test]
@@ -190,7 +200,11 @@ fn results_do_not_depend_on_the_number_of_threads() {
             )
         })
     };
-    for algorithm in [Algorithm::GaussNewton, Algorithm::LevenbergMarquardt] {
+    for algorithm in [
+        Algorithm::GaussNewton,
+        Algorithm::LevenbergMarquardt,
+        Algorithm::Dogleg,
+    ] {
         let one = run(1, algorithm);
         assert_eq!(one, run(2, algorithm), "{algorithm:?}");
         assert_eq!(one, run(3, algorithm), "{algorithm:?}");
@@ -366,4 +380,25 @@ fn marginals_equal_blocks_of_the_dense_inverse() {
         opt.marginals(&g, &[77]).unwrap_err(),
         SolveError::UnknownVertex(77)
     );
+}
+
+#[test]
+fn dogleg_radius_shrinks_on_a_bad_start_and_never_accepts_an_increase() {
+    let mut g = noisy_loop(60, 10);
+    for i in 1..60 {
+        // A poor start: headings scrambled.
+        let x: SE2 = g.value(i).unwrap();
+        g.set_value(i, &SE2::new(x.t.x, x.t.y, x.theta + 1.5 * (i % 3) as f64))
+            .unwrap();
+    }
+    let mut cfg = config(Algorithm::Dogleg);
+    cfg.dogleg.initial_radius = 1.0;
+    let s = optimize(&mut g, cfg).unwrap();
+    assert!(
+        s.trace
+            .iter()
+            .all(|t| t.radius.is_some() && t.lambda.is_none())
+    );
+    assert!(s.trace.windows(2).all(|w| w[1].chi2 <= w[0].chi2));
+    assert!(s.final_chi2 < s.initial_chi2);
 }

@@ -17,6 +17,8 @@ enum SolverName {
     Gn,
     /// Levenberg-Marquardt.
     Lm,
+    /// Powell's dogleg.
+    Dogleg,
 }
 
 #[derive(Clone, Copy, Debug, PartialEq, Eq, ValueEnum)]
@@ -98,22 +100,26 @@ fn iteration_line(s: &IterationStats, edges: usize) -> String {
     if let Some(l) = s.lambda {
         let _ = write!(line, "\t lambda= {l:.6e}");
     }
+    if let Some(r) = s.radius {
+        let _ = write!(line, "\t radius= {r:.6e}");
+    }
     line
 }
 
 fn stats_csv(summary: &Summary) -> String {
     let mut out = String::from(
-        "iteration,chi2,lambda,trials,gradient_max,step_max,time_s,cumulative_s,\
+        "iteration,chi2,lambda,radius,trials,gradient_max,step_max,time_s,cumulative_s,\
          linearize_s,assemble_s,factorize_s,solve_s,update_s,chi2_s\n",
     );
     for s in &summary.trace {
         let p = &s.phases;
         let _ = writeln!(
             out,
-            "{},{:?},{},{},{:?},{:?},{:?},{:?},{:?},{:?},{:?},{:?},{:?},{:?}",
+            "{},{:?},{},{},{},{:?},{:?},{:?},{:?},{:?},{:?},{:?},{:?},{:?},{:?}",
             s.iteration,
             s.chi2,
             s.lambda.map_or(String::new(), |l| format!("{l:?}")),
+            s.radius.map_or(String::new(), |r| format!("{r:?}")),
             s.trials,
             s.gradient_max,
             s.step_max,
@@ -242,6 +248,7 @@ pub fn run(a: SolveArgs) -> Result<(), String> {
         algorithm: match a.solver {
             SolverName::Gn => Algorithm::GaussNewton,
             SolverName::Lm => Algorithm::LevenbergMarquardt,
+            SolverName::Dogleg => Algorithm::Dogleg,
         },
         max_iterations: a.iterations,
         relative_decrease: a.relative_decrease,

@@ -1,0 +1,173 @@
+//! Powell's dogleg over the same linear system as Gauss-Newton.
+
+use super::{max_abs, since};
+use crate::config::{IterationStats, PhaseTimes, Summary, Termination};
+use crate::optimizer::Optimizer;
+use cairn_core::Graph;
+use std::time::Instant;
+
+fn dot(a: &[f64], b: &[f64]) -> f64 {
+    a.iter().zip(b).map(|(x, y)| x * y).sum()
+}
+
+impl Optimizer {
+    /// One trust-region iteration per linearisation: the Gauss-Newton step if it
+    /// fits in the radius, else the steepest-descent (Cauchy) step scaled to the
+    /// radius, else the point on the segment between them at the radius. The
+    /// model of χ² = Σ eᵀΩe is χ² + 2gᵀh + hᵀHh; the radius grows after good
+    /// agreement (ρ > 0.75) and halves after poor agreement or a rejected step.
+    /// If H is not positive definite, the Gauss-Newton step is damped (H + μI).
+    pub(super) fn dogleg(
+        &mut self,
+        graph: &mut Graph,
+        summary: &mut Summary,
+        start: Instant,
+        on_iteration: &mut dyn FnMut(&IterationStats),
+    ) -> Termination {
+        let n = self.structure.dim;
+        let (mut gauss_newton, mut product) = (vec![0.0; n], vec![0.0; n]);
+        let mut chi2 = summary.initial_chi2;
+        let mut radius = self.config.dogleg.initial_radius;
+        for iteration in 0..self.config.max_iterations {
+            let began = Instant::now();
+            let mut phases = PhaseTimes::default();
+            let gradient_max = max_abs(&self.gradient);
+            if gradient_max < self.config.gradient_tolerance || chi2 == 0.0 {
+                return Termination::GradientNorm;
+            }
+            if !self.damped_gauss_newton_step(&mut phases) {
+                return Termination::NotPositiveDefinite;
+            }
+            gauss_newton.copy_from_slice(&self.step);
+            let gn_norm = dot(&gauss_newton, &gauss_newton).sqrt();
+            // Cauchy point: minimiser of the model along −g.
+            self.structure
+                .hessian_times(&self.hessian, &self.gradient, &mut product);
+            let g2 = dot(&self.gradient, &self.gradient);
+            let curvature = dot(&self.gradient, &product);
+            let t = if curvature > 0.0 {
+                g2 / curvature
+            } else {
+                f64::INFINITY
+            };
+            let g_norm = g2.sqrt();
+
+            self.save(graph);
+            let mut trials = 0;
+            let accepted = loop {
+                trials += 1;
+                if gn_norm <= radius {
+                    self.step.copy_from_slice(&gauss_newton);
+                } else if t * g_norm >= radius {
+                    let scale = radius / g_norm;
+                    self.step
+                        .iter_mut()
+                        .zip(&self.gradient)
+                        .for_each(|(s, g)| *s = -scale * g);
+                } else {
+                    // a = −t·g (inside), b = GN step (outside): |a + β(b − a)| = radius.
+                    let (mut aa, mut ad, mut dd) = (0.0, 0.0, 0.0);
+                    for (g, b) in self.gradient.iter().zip(&gauss_newton) {
+                        let (a, d) = (-t * g, b + t * g);
+                        aa += a * a;
+                        ad += a * d;
+                        dd += d * d;
+                    }
+                    let beta = (-ad + (ad * ad - dd * (aa - radius * radius)).max(0.0).sqrt()) / dd;
+                    for ((s, g), b) in self.step.iter_mut().zip(&self.gradient).zip(&gauss_newton) {
+                        *s = -t * g + beta * (b + t * g);
+                    }
+                }
+                self.structure
+                    .hessian_times(&self.hessian, &self.step, &mut product);
+                let predicted =
+                    -(2.0 * dot(&self.gradient, &self.step) + dot(&self.step, &product));
+                let step_norm = dot(&self.step, &self.step).sqrt();
+                let t0 = Instant::now();
+                self.apply_step(graph);
+                phases.update += since(t0);
+                let t0 = Instant::now();
+                let trial = graph.chi2();
+                phases.chi2 += since(t0);
+                let rho = (chi2 - trial) / predicted;
+                if trial.is_finite() && predicted > 0.0 && rho > 0.0 {
+                    if rho > 0.75 {
+                        radius = radius.max(3.0 * step_norm);
+                    } else if rho < 0.25 {
+                        radius *= 0.5;
+                    }
+                    break Some(trial);
+                }
+                let t0 = Instant::now();
+                self.restore(graph);
+                phases.update += since(t0);
+                radius = 0.5 * radius.min(step_norm);
+                if trials >= self.config.dogleg.max_trials {
+                    break None;
+                }
+            };
+            let mut stats = IterationStats {
+                iteration,
+                chi2,
+                lambda: None,
+                radius: Some(radius),
+                trials,
+                gradient_max,
+                step_max: 0.0,
+                time: 0.0,
+                cumulative_time: 0.0,
+                phases,
+            };
+            let Some(new_chi2) = accepted else {
+                stats.time = since(began);
+                stats.cumulative_time = since(start);
+                on_iteration(&stats);
+                summary.trace.push(stats);
+                return Termination::NoImprovement;
+            };
+            let decrease = (chi2 - new_chi2) / chi2;
+            chi2 = new_chi2;
+            summary.final_chi2 = chi2;
+            let small_step = self.step_is_small(graph);
+            let converged = (0.0..self.config.relative_decrease).contains(&decrease);
+            if !(small_step || converged || iteration + 1 == self.config.max_iterations) {
+                self.linearize(graph, &mut stats.phases);
+            }
+            stats.chi2 = chi2;
+            stats.step_max = max_abs(&self.step);
+            stats.time = since(began);
+            stats.cumulative_time = since(start);
+            on_iteration(&stats);
+            summary.trace.push(stats);
+            if small_step {
+                return Termination::StepSize;
+            }
+            if converged {
+                return Termination::RelativeDecrease;
+            }
+        }
+        Termination::MaxIterations
+    }
+
+    /// The Gauss-Newton step in `self.step`, damped (H + μI, μ from 1e-8·max
+    /// diag H upwards by tens) only if H alone is not positive definite.
+    fn damped_gauss_newton_step(&mut self, phases: &mut PhaseTimes) -> bool {
+        let max_diagonal = self
+            .structure
+            .diagonal
+            .iter()
+            .fold(0.0f64, |m, &d| m.max(self.hessian[d].abs()));
+        let mut damping = 0.0;
+        for _ in 0..12 {
+            if self.compute_step(damping, phases) {
+                return true;
+            }
+            damping = if damping == 0.0 {
+                1e-8 * max_diagonal.max(f64::MIN_POSITIVE)
+            } else {
+                damping * 10.0
+            };
+        }
+        false
+    }
+}
