@@ -211,3 +211,28 @@ fn fix_holds_vertices_and_cubicle_needs_repair() {
     assert!(o.status.success());
     assert!(stderr(&o).contains("repaired 5021 information matrices"));
 }
+
+#[test]
+fn check_reports_worst_edges_scaling_and_components() {
+    let dir = temp_dir("check");
+    let file = dir.join("g.g2o");
+    std::fs::write(
+        &file,
+        "VERTEX_SE2 0 0 0 0\nVERTEX_SE2 1 1 0 0\nVERTEX_SE2 2 5 0 0\nVERTEX_SE2 7 0 0 0\n\
+         EDGE_SE2 0 1 1 0 0 1 0 0 1 0 1\nEDGE_SE2 1 2 1 0 0 1e12 0 0 1 0 1\nEDGE_SE2 0 2 2 0 0 1 2 0 1 0 1\nJUNK 1\n",
+    )
+    .unwrap();
+    let o = cairn(&["check", s(&file), "--worst", "2"]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let out = String::from_utf8_lossy(&o.stdout);
+    assert!(out.contains("4 vertices (SE2 4), 3 edges (EDGE_SE2 3)"), "{out}");
+    assert!(out.contains("1 not positive definite (lines 7;"), "{out}");
+    assert!(out.contains("1 badly scaled"), "{out}");
+    assert!(out.contains("connected components: 2 (sizes 3, 1); automatic gauge fixes [0, 7]"), "{out}");
+    assert!(out.contains("edge #1 EDGE_SE2 [1, 2]: χ² 9000000000000"), "{out}");
+    assert!(out.contains("skipped lines with unsupported tags: JUNK 1"), "{out}");
+    let o = cairn(&["check", s(&file), "--json"]);
+    let json: serde_json::Value = serde_json::from_slice(&o.stdout).unwrap();
+    assert_eq!(json["worst_edges"][0]["edge"], 1);
+    assert_eq!(json["indefinite_information_lines"], serde_json::json!([7]));
+}

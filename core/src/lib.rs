@@ -21,6 +21,7 @@
 //! # Ok::<(), cairn_core::GraphError>(())
 //! ```
 
+pub mod diagnostics;
 pub mod edge;
 pub mod edges;
 pub mod factor;

@@ -1,5 +1,6 @@
 //! Command-line definitions and dispatch.
 
+mod check;
 mod generate;
 mod solve;
 
@@ -17,6 +18,9 @@ pub struct Cli {
 enum Command {
     /// Optimise a g2o file and write the result (g2o's `g2o -o OUT FILE`).
     Solve(solve::SolveArgs),
+    /// Report on a g2o file: largest χ² edges, χ² histogram, indefinite or badly
+    /// scaled information matrices, connected components.
+    Check(check::CheckArgs),
     /// Write a synthetic benchmark graph (Manhattan world or sphere) in g2o format.
     Generate(generate::GenerateArgs),
 }
@@ -26,7 +30,21 @@ pub fn run(cli: Cli) -> Result<(), String> {
     match cli.command {
         Command::Solve(args) => solve::run(args),
         Command::Generate(args) => generate::run(args),
+        Command::Check(args) => check::run(args),
     }
+}
+
+/// The bytes of `path`, or of stdin for `-`.
+pub fn read_input(path: &std::path::Path) -> Result<Vec<u8>, String> {
+    if path.as_os_str() == "-" {
+        use std::io::Read;
+        let mut bytes = Vec::new();
+        std::io::stdin()
+            .read_to_end(&mut bytes)
+            .map_err(|e| format!("stdin: {e}"))?;
+        return Ok(bytes);
+    }
+    std::fs::read(path).map_err(|e| format!("{}: {e}", path.display()))
 }
 
 /// Writes `bytes` to `path` atomically, or to stdout for `-`.

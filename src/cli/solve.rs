@@ -7,7 +7,6 @@ use cairn::solvers::{
 };
 use clap::{Args, ValueEnum};
 use std::fmt::Write as _;
-use std::io::Read;
 use std::path::PathBuf;
 use std::time::Instant;
 
@@ -219,15 +218,7 @@ pub fn run(a: SolveArgs) -> Result<(), String> {
     }
     let name = a.file.display().to_string();
     let t = Instant::now();
-    let bytes = if name == "-" {
-        let mut b = Vec::new();
-        std::io::stdin()
-            .read_to_end(&mut b)
-            .map_err(|e| format!("stdin: {e}"))?;
-        b
-    } else {
-        std::fs::read(&a.file).map_err(|e| format!("{name}: {e}"))?
-    };
+    let bytes = super::read_input(&a.file)?;
     let options = ReadOptions {
         repair_information: a.repair_information,
     };
