@@ -76,7 +76,8 @@ pub fn diagnose(graph: &Graph, worst: usize) -> Diagnostics {
         let n = e.error_dim();
         let eig = DMatrix::from_column_slice(n, n, e.information()).symmetric_eigenvalues();
         let condition = eig.max() / eig.min();
-        if !(condition <= BAD_CONDITION) {
+        // A NaN condition (0/0) counts as badly scaled too.
+        if condition.is_nan() || condition > BAD_CONDITION {
             badly_scaled.push(EdgeSummary {
                 index: k,
                 name: e.name(),
