@@ -22,3 +22,4 @@ pub use cairn_g2o as g2o;
 pub use cairn_solvers as solvers;
 
 pub mod generate;
+pub mod outliers;

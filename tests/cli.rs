@@ -225,14 +225,49 @@ fn check_reports_worst_edges_scaling_and_components() {
     let o = cairn(&["check", s(&file), "--worst", "2"]);
     assert!(o.status.success(), "{}", stderr(&o));
     let out = String::from_utf8_lossy(&o.stdout);
-    assert!(out.contains("4 vertices (SE2 4), 3 edges (EDGE_SE2 3)"), "{out}");
+    assert!(
+        out.contains("4 vertices (SE2 4), 3 edges (EDGE_SE2 3)"),
+        "{out}"
+    );
     assert!(out.contains("1 not positive definite (lines 7;"), "{out}");
     assert!(out.contains("1 badly scaled"), "{out}");
-    assert!(out.contains("connected components: 2 (sizes 3, 1); automatic gauge fixes [0, 7]"), "{out}");
-    assert!(out.contains("edge #1 EDGE_SE2 [1, 2]: χ² 9000000000000"), "{out}");
-    assert!(out.contains("skipped lines with unsupported tags: JUNK 1"), "{out}");
+    assert!(
+        out.contains("connected components: 2 (sizes 3, 1); automatic gauge fixes [0, 7]"),
+        "{out}"
+    );
+    assert!(
+        out.contains("edge #1 EDGE_SE2 [1, 2]: χ² 9000000000000"),
+        "{out}"
+    );
+    assert!(
+        out.contains("skipped lines with unsupported tags: JUNK 1"),
+        "{out}"
+    );
     let o = cairn(&["check", s(&file), "--json"]);
     let json: serde_json::Value = serde_json::from_slice(&o.stdout).unwrap();
     assert_eq!(json["worst_edges"][0]["edge"], 1);
     assert_eq!(json["indefinite_information_lines"], serde_json::json!([7]));
+}
+
+#[test]
+fn corrupt_then_solve_with_a_robust_kernel() {
+    let dir = temp_dir("robust");
+    let (clean, bad) = (dir.join("clean.g2o"), dir.join("bad.g2o"));
+    assert!(cairn(&["generate", "manhattan", "-n", "500", "-o", s(&clean)]).status.success());
+    let o = cairn(&["corrupt", s(&clean), "--fraction", "0.1", "--seed", "3", "-o", s(&bad)]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    assert!(stderr(&o).contains("added"), "{}", stderr(&o));
+    let chi2 = |args: &[&str]| -> f64 {
+        let o = cairn(args);
+        assert!(o.status.success(), "{}", stderr(&o));
+        serde_json::from_slice::<serde_json::Value>(&o.stdout).unwrap()["summary"]["final_chi2"].as_f64().unwrap()
+    };
+    let clean_chi2 = chi2(&["solve", s(&clean), "-q", "--json"]);
+    let naive = chi2(&["solve", s(&bad), "-q", "--json"]);
+    let robust = chi2(&["solve", s(&bad), "-q", "--json", "--robust-kernel", "dcs", "--non-sequential"]);
+    assert!(naive > 100.0 * clean_chi2, "{naive} vs {clean_chi2}");
+    assert!(robust < 2.0 * clean_chi2, "{robust} vs {clean_chi2}");
+    let o = cairn(&["solve", s(&bad), "--robust-kernel", "l3"]);
+    assert_eq!(o.status.code(), Some(1));
+    assert!(stderr(&o).contains("unknown robust kernel \"l3\"; choose one of huber"), "{}", stderr(&o));
 }

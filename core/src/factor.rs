@@ -3,6 +3,7 @@
 //! iteration, none per edge or per block).
 
 use crate::edge::{BinaryEdge, UnaryEdge};
+use crate::kernel::RobustKernel;
 use crate::layout;
 use crate::values::Values;
 use nalgebra::{SMatrix, SVector};
@@ -44,8 +45,12 @@ pub trait FactorGroup: Send + Sync + 'static {
     fn edge(&self, i: usize) -> &dyn Any;
     /// Information matrix of edge `i`, column-major `error_dim × error_dim`.
     fn information(&self, i: usize) -> &[f64];
-    /// χ² = eᵀΩe of edge `i`.
+    /// Edge `i`'s contribution to the objective: eᵀΩe, or ρ(eᵀΩe) with a robust kernel.
     fn chi2(&self, i: usize, values: &Values) -> f64;
+    /// The robust kernel of edge `i`, if any.
+    fn kernel(&self, i: usize) -> Option<RobustKernel>;
+    /// Sets or removes the robust kernel of edge `i`.
+    fn set_kernel(&mut self, i: usize, kernel: Option<RobustKernel>);
     /// Error vector of edge `i` written into `out` (length `error_dim`).
     fn error(&self, i: usize, values: &Values, out: &mut [f64]);
     /// Writes every edge's slot (see [`crate::layout`]) into `out`, which holds
@@ -67,6 +72,22 @@ struct Entry<T, const E: usize, const N: usize> {
     edge: T,
     vertices: [usize; N],
     information: SMatrix<f64, E, E>,
+    kernel: Option<RobustKernel>,
+}
+
+impl<T, const E: usize, const N: usize> Entry<T, E, N> {
+    /// (objective contribution, weight of Ω) for the error `e`.
+    #[inline]
+    fn robust(&self, e: &SVector<f64, E>) -> (f64, f64) {
+        let s = e.dot(&(self.information * e));
+        match self.kernel {
+            None => (s, 1.0),
+            Some(k) => {
+                let [rho, weight, _] = k.robustify(s);
+                (rho, weight)
+            }
+        }
+    }
 }
 
 /// All edges of one unary type.
@@ -89,6 +110,7 @@ impl<T: UnaryEdge<E, D>, const E: usize, const D: usize> UnaryGroup<T, E, D> {
             edge,
             vertices: [vertex],
             information,
+            kernel: None,
         });
         self.entries.len() - 1
     }
@@ -132,8 +154,13 @@ impl<T: UnaryEdge<E, D>, const E: usize, const D: usize> FactorGroup for UnaryGr
         self.entries[i].information.as_slice()
     }
     fn chi2(&self, i: usize, values: &Values) -> f64 {
-        let e = self.eval(i, values).1;
-        e.dot(&(self.entries[i].information * e))
+        self.entries[i].robust(&self.eval(i, values).1).0
+    }
+    fn kernel(&self, i: usize) -> Option<RobustKernel> {
+        self.entries[i].kernel
+    }
+    fn set_kernel(&mut self, i: usize, kernel: Option<RobustKernel>) {
+        self.entries[i].kernel = kernel;
     }
     fn error(&self, i: usize, values: &Values, out: &mut [f64]) {
         out.copy_from_slice(self.eval(i, values).1.as_slice());
@@ -148,10 +175,11 @@ impl<T: UnaryEdge<E, D>, const E: usize, const D: usize> FactorGroup for UnaryGr
             .for_each(|(i, (slot, en))| {
                 let (x, e) = self.eval(i, values);
                 let j = en.edge.jacobian(&x);
-                let oj = en.information * j;
+                let (chi2, weight) = en.robust(&e);
+                let oj = en.information * j * weight;
                 slot[..D * D].copy_from_slice((j.transpose() * oj).as_slice());
                 slot[g0..g0 + D].copy_from_slice((oj.transpose() * e).as_slice());
-                slot[stride - 1] = e.dot(&(en.information * e));
+                slot[stride - 1] = chi2;
             });
     }
     fn propagate(&self, _i: usize, _known: usize, _values: &mut Values) -> Option<usize> {
@@ -189,6 +217,7 @@ impl<T: BinaryEdge<E, D1, D2>, const E: usize, const D1: usize, const D2: usize>
             edge,
             vertices,
             information,
+            kernel: None,
         });
         self.entries.len() - 1
     }
@@ -237,8 +266,13 @@ impl<T: BinaryEdge<E, D1, D2>, const E: usize, const D1: usize, const D2: usize>
         self.entries[i].information.as_slice()
     }
     fn chi2(&self, i: usize, values: &Values) -> f64 {
-        let e = self.eval(i, values).2;
-        e.dot(&(self.entries[i].information * e))
+        self.entries[i].robust(&self.eval(i, values).2).0
+    }
+    fn kernel(&self, i: usize) -> Option<RobustKernel> {
+        self.entries[i].kernel
+    }
+    fn set_kernel(&mut self, i: usize, kernel: Option<RobustKernel>) {
+        self.entries[i].kernel = kernel;
     }
     fn error(&self, i: usize, values: &Values, out: &mut [f64]) {
         out.copy_from_slice(self.eval(i, values).2.as_slice());
@@ -255,14 +289,15 @@ impl<T: BinaryEdge<E, D1, D2>, const E: usize, const D1: usize, const D2: usize>
             .for_each(|(i, (slot, en))| {
                 let (x1, x2, e) = self.eval(i, values);
                 let (j1, j2) = en.edge.jacobians(&x1, &x2);
-                let oj1 = en.information * j1;
-                let oj2 = en.information * j2;
+                let (chi2, weight) = en.robust(&e);
+                let oj1 = en.information * j1 * weight;
+                let oj2 = en.information * j2 * weight;
                 slot[..o12].copy_from_slice((j1.transpose() * oj1).as_slice());
                 slot[o12..o22].copy_from_slice((j1.transpose() * oj2).as_slice());
                 slot[o22..g1].copy_from_slice((j2.transpose() * oj2).as_slice());
                 slot[g1..g2].copy_from_slice((oj1.transpose() * e).as_slice());
                 slot[g2..g2 + D2].copy_from_slice((oj2.transpose() * e).as_slice());
-                slot[stride - 1] = e.dot(&(en.information * e));
+                slot[stride - 1] = chi2;
             });
     }
     fn propagate(&self, i: usize, known: usize, values: &mut Values) -> Option<usize> {

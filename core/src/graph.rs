@@ -3,6 +3,7 @@
 use crate::edge::{BinaryEdge, UnaryEdge};
 use crate::factor::{BinaryGroup, FactorGroup, UnaryGroup};
 use crate::information::{InformationIssue, check_information};
+use crate::kernel::RobustKernel;
 use crate::values::Values;
 use crate::variable::Variable;
 use nalgebra::{SMatrix, SVector};
@@ -145,9 +146,13 @@ impl<'a> EdgeView<'a> {
     pub fn information(&self) -> &'a [f64] {
         self.group.information(self.index)
     }
-    /// χ² of this edge at the graph's current values.
+    /// This edge's χ² at `values` (ρ(eᵀΩe) if it has a robust kernel).
     pub fn chi2(&self, values: &Values) -> f64 {
         self.group.chi2(self.index, values)
+    }
+    /// Its robust kernel, if any.
+    pub fn kernel(&self) -> Option<RobustKernel> {
+        self.group.kernel(self.index)
     }
 }
 
@@ -417,7 +422,18 @@ impl Graph {
         (kind.oplus)(self.values.params_of_mut(index), delta);
     }
 
-    /// Total χ² = Σ eᵀΩe over all edges (g2o convention, no ½).
+    /// Sets (or with `None` removes) the robust kernel of edge number `edge`.
+    /// Returns `false` if there is no such edge.
+    pub fn set_robust_kernel(&mut self, edge: usize, kernel: Option<RobustKernel>) -> bool {
+        let Some(&(g, i)) = self.edge_order.get(edge) else {
+            return false;
+        };
+        self.groups[g as usize].set_kernel(i as usize, kernel);
+        true
+    }
+
+    /// Total χ² = Σ eᵀΩe over all edges (g2o convention, no ½); edges with a
+    /// robust kernel contribute ρ(eᵀΩe).
     pub fn chi2(&self) -> f64 {
         self.groups.iter().map(|g| g.total_chi2(&self.values)).sum()
     }

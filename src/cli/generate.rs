@@ -36,7 +36,11 @@ pub struct GenerateArgs {
 }
 
 pub fn run(a: GenerateArgs) -> Result<(), String> {
-    if !(a.sigma_translation > 0.0 && a.sigma_rotation > 0.0) {
+    if a.sigma_translation.is_nan()
+        || a.sigma_rotation.is_nan()
+        || a.sigma_translation <= 0.0
+        || a.sigma_rotation <= 0.0
+    {
         return Err("noise σ must be positive".into());
     }
     let graph = match a.world {

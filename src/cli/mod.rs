@@ -1,6 +1,7 @@
 //! Command-line definitions and dispatch.
 
 mod check;
+mod corrupt;
 mod generate;
 mod solve;
 
@@ -21,6 +22,8 @@ enum Command {
     /// Report on a g2o file: largest χ² edges, χ² histogram, indefinite or badly
     /// scaled information matrices, connected components.
     Check(check::CheckArgs),
+    /// Add random false loop closures (seeded) to test robust kernels.
+    Corrupt(corrupt::CorruptArgs),
     /// Write a synthetic benchmark graph (Manhattan world or sphere) in g2o format.
     Generate(generate::GenerateArgs),
 }
@@ -31,6 +34,7 @@ pub fn run(cli: Cli) -> Result<(), String> {
         Command::Solve(args) => solve::run(args),
         Command::Generate(args) => generate::run(args),
         Command::Check(args) => check::run(args),
+        Command::Corrupt(args) => corrupt::run(args),
     }
 }
 

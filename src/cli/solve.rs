@@ -1,5 +1,6 @@
 //! `cairn solve`: optimise a g2o file.
 
+use cairn::core::RobustKernel;
 use cairn::g2o::{LoadReport, ReadOptions};
 use cairn::solvers::{
     Algorithm, Factorization, IterationStats, LinearSolverConfig, Optimizer, Ordering,
@@ -64,6 +65,19 @@ pub struct SolveArgs {
     /// nearest positive-definite ones (cubicle.g2o needs this) instead of refusing.
     #[arg(long)]
     repair_information: bool,
+    /// Robust kernel on the edges' squared errors: huber, pseudo-huber, cauchy,
+    /// geman-mcclure, welsch, fair, tukey, saturated or dcs. (With dcs, use gn or
+    /// dogleg: its weights are not the derivative of its cost, which LM's gain
+    /// ratio needs.)
+    #[arg(long)]
+    robust_kernel: Option<String>,
+    /// Width δ of the robust kernel.
+    #[arg(long, default_value_t = 1.0)]
+    robust_kernel_width: f64,
+    /// Apply the robust kernel only to loop closures: edges between vertices
+    /// whose ids are not consecutive (g2o's -nonSequential).
+    #[arg(long)]
+    non_sequential: bool,
     /// Cholesky variant.
     #[arg(long, value_enum, default_value = "auto")]
     factorization: FactorizationName,
@@ -228,6 +242,30 @@ pub fn run(a: SolveArgs) -> Result<(), String> {
         graph
             .set_fixed(id, true)
             .map_err(|e| format!("--fix: {e}"))?;
+    }
+    if let Some(name) = &a.robust_kernel {
+        let kernel = RobustKernel::from_name(name, a.robust_kernel_width).ok_or_else(|| {
+            format!(
+                "unknown robust kernel {name:?}; choose one of {}",
+                RobustKernel::NAMES.join(", ")
+            )
+        })?;
+        // Also rejects NaN.
+        if a.robust_kernel_width.is_nan() || a.robust_kernel_width <= 0.0 {
+            return Err("--robust-kernel-width must be positive".into());
+        }
+        for k in 0..graph.num_edges() {
+            let ids: Vec<i64> = graph
+                .edge(k)
+                .vertices()
+                .iter()
+                .map(|&v| graph.vertex(v).id)
+                .collect();
+            let sequential = ids.len() == 2 && (ids[0] - ids[1]).abs() == 1;
+            if !(a.non_sequential && sequential) {
+                graph.set_robust_kernel(k, Some(kernel));
+            }
+        }
     }
     let load = t.elapsed().as_secs_f64();
     let (vertices, edges) = (graph.num_vertices(), graph.num_edges());

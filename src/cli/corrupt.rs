@@ -1,0 +1,45 @@
+//! `cairn corrupt`: add random false loop closures to a g2o file.
+
+use cairn::g2o::ReadOptions;
+use cairn::outliers::add_false_loop_closures;
+use clap::Args;
+use std::path::PathBuf;
+
+/// Options of `cairn corrupt`.
+#[derive(Debug, Args)]
+pub struct CorruptArgs {
+    /// Input g2o file (`-` for stdin).
+    file: PathBuf,
+    /// Output g2o file (`-` for stdout).
+    #[arg(short, long, default_value = "-")]
+    output: PathBuf,
+    /// False loop closures to add, as a fraction of the file's edges.
+    #[arg(long, default_value_t = 0.1)]
+    fraction: f64,
+    /// Their translations are uniform in ±SPREAD metres per axis.
+    #[arg(long, default_value_t = 10.0)]
+    spread: f64,
+    /// Random seed.
+    #[arg(long, default_value_t = 1)]
+    seed: u64,
+}
+
+pub fn run(a: CorruptArgs) -> Result<(), String> {
+    let name = a.file.display().to_string();
+    let bytes = super::read_input(&a.file)?;
+    let (mut graph, _) = cairn::g2o::read_bytes(&bytes, &ReadOptions::default())
+        .map_err(|e| format!("{name}: {e}"))?;
+    if a.fraction.is_nan() || a.fraction < 0.0 || a.spread.is_nan() || a.spread <= 0.0 {
+        return Err("--fraction must be at least 0 and --spread positive".into());
+    }
+    let added = add_false_loop_closures(&mut graph, a.fraction, a.spread, a.seed)
+        .map_err(|e| e.to_string())?;
+    let text = cairn::g2o::to_string(&graph).map_err(|e| e.to_string())?;
+    super::write_output(&a.output, text.as_bytes())?;
+    eprintln!(
+        "{name}: added {} false loop closures (edges #{}…)",
+        added.len(),
+        added.first().copied().unwrap_or(0)
+    );
+    Ok(())
+}
