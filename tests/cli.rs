@@ -253,21 +253,48 @@ fn check_reports_worst_edges_scaling_and_components() {
 fn corrupt_then_solve_with_a_robust_kernel() {
     let dir = temp_dir("robust");
     let (clean, bad) = (dir.join("clean.g2o"), dir.join("bad.g2o"));
-    assert!(cairn(&["generate", "manhattan", "-n", "500", "-o", s(&clean)]).status.success());
-    let o = cairn(&["corrupt", s(&clean), "--fraction", "0.1", "--seed", "3", "-o", s(&bad)]);
+    assert!(
+        cairn(&["generate", "manhattan", "-n", "500", "-o", s(&clean)])
+            .status
+            .success()
+    );
+    let o = cairn(&[
+        "corrupt",
+        s(&clean),
+        "--fraction",
+        "0.1",
+        "--seed",
+        "3",
+        "-o",
+        s(&bad),
+    ]);
     assert!(o.status.success(), "{}", stderr(&o));
     assert!(stderr(&o).contains("added"), "{}", stderr(&o));
     let chi2 = |args: &[&str]| -> f64 {
         let o = cairn(args);
         assert!(o.status.success(), "{}", stderr(&o));
-        serde_json::from_slice::<serde_json::Value>(&o.stdout).unwrap()["summary"]["final_chi2"].as_f64().unwrap()
+        serde_json::from_slice::<serde_json::Value>(&o.stdout).unwrap()["summary"]["final_chi2"]
+            .as_f64()
+            .unwrap()
     };
     let clean_chi2 = chi2(&["solve", s(&clean), "-q", "--json"]);
     let naive = chi2(&["solve", s(&bad), "-q", "--json"]);
-    let robust = chi2(&["solve", s(&bad), "-q", "--json", "--robust-kernel", "dcs", "--non-sequential"]);
+    let robust = chi2(&[
+        "solve",
+        s(&bad),
+        "-q",
+        "--json",
+        "--robust-kernel",
+        "dcs",
+        "--non-sequential",
+    ]);
     assert!(naive > 100.0 * clean_chi2, "{naive} vs {clean_chi2}");
     assert!(robust < 2.0 * clean_chi2, "{robust} vs {clean_chi2}");
     let o = cairn(&["solve", s(&bad), "--robust-kernel", "l3"]);
     assert_eq!(o.status.code(), Some(1));
-    assert!(stderr(&o).contains("unknown robust kernel \"l3\"; choose one of huber"), "{}", stderr(&o));
+    assert!(
+        stderr(&o).contains("unknown robust kernel \"l3\"; choose one of huber"),
+        "{}",
+        stderr(&o)
+    );
 }
