@@ -43,11 +43,17 @@ fn generate_then_solve_writes_an_optimised_graph() {
         "{err}"
     );
     let json: serde_json::Value = serde_json::from_slice(&o.stdout).unwrap();
-    let (initial, last) = (
-        json["summary"]["initial_chi2"].as_f64().unwrap(),
-        json["summary"]["final_chi2"].as_f64().unwrap(),
-    );
+    let last = json["summary"]["final_chi2"].as_f64().unwrap();
+    let initial = cairn::g2o::read_file(&input, &Default::default())
+        .unwrap()
+        .0
+        .chi2();
     assert!(last < 0.01 * initial, "{initial} → {last}");
+    assert!(["file", "chordal"].contains(&json["init"].as_str().unwrap()));
+    let o = cairn(&["solve", s(&input), "--init", "file", "--json", "-q"]);
+    let json: serde_json::Value = serde_json::from_slice(&o.stdout).unwrap();
+    assert_eq!(json["init"], "file");
+    assert!((json["summary"]["initial_chi2"].as_f64().unwrap() - initial).abs() <= 1e-9 * initial);
     assert_eq!(json["vertices"], 400);
     // The output reads back and is at the optimum.
     let (mut graph, _) = cairn::g2o::read_file(&output, &Default::default()).unwrap();

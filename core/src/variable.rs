@@ -2,7 +2,7 @@
 
 use crate::se2::SE2;
 use crate::se3::{SE3, quaternion_from_vector};
-use nalgebra::{Quaternion, SVector, UnitQuaternion, Vector2, Vector3};
+use nalgebra::{Quaternion, SVector, UnitQuaternion, Vector3};
 
 /// A variable whose tangent space has `D` dimensions.
 ///
@@ -53,21 +53,29 @@ impl Variable<3> for SE2 {
     }
 }
 
-/// A 2D point landmark (g2o `VERTEX_XY`).
-impl Variable<2> for Vector2<f64> {
-    const PARAMS: usize = 2;
-    const NAME: &'static str = "XY";
+macro_rules! vector_variable {
+    ($($n:literal => $name:literal),*) => {$(
+        /// A plain vector with additive updates.
+        impl Variable<$n> for SVector<f64, $n> {
+            const PARAMS: usize = $n;
+            const NAME: &'static str = $name;
 
-    fn from_params(p: &[f64]) -> Self {
-        Vector2::new(p[0], p[1])
-    }
-    fn write_params(&self, out: &mut [f64]) {
-        out[..2].copy_from_slice(self.as_slice());
-    }
-    fn oplus(&self, d: &Vector2<f64>) -> Self {
-        self + d
-    }
+            fn from_params(p: &[f64]) -> Self {
+                SVector::from_column_slice(&p[..$n])
+            }
+            fn write_params(&self, out: &mut [f64]) {
+                out[..$n].copy_from_slice(self.as_slice());
+            }
+            fn oplus(&self, d: &SVector<f64, $n>) -> Self {
+                self + d
+            }
+        }
+    )*};
 }
+
+// 2D points (g2o `VERTEX_XY`), 3D points, and the vectors of chordal
+// initialisation (a 3×3 rotation relaxed to 9 numbers).
+vector_variable!(1 => "VECTOR1", 2 => "XY", 3 => "XYZ", 4 => "VECTOR4", 6 => "VECTOR6", 9 => "VECTOR9");
 
 /// `q` normalised, robust to components that would overflow or underflow when
 /// squared. Already-unit quaternions are kept bit for bit, so that reading what

@@ -25,16 +25,20 @@
 //! # Ok::<(), Box<dyn std::error::Error>>(())
 //! ```
 
+pub mod chordal;
 pub mod config;
+pub mod initialization;
 pub mod linear;
 pub mod marginals;
 pub mod optimizer;
 pub mod structure;
 
+pub use chordal::{ChordalReport, chordal_initialize};
 pub use config::{
     Algorithm, DoglegConfig, IterationStats, LevenbergMarquardtConfig, PhaseTimes, SolverConfig,
     Summary, Termination,
 };
+pub use initialization::{Initialization, optimize_from, spanning_tree_initialize};
 pub use linear::{
     Factorization, LinearSolverConfig, NotPositiveDefinite, Ordering, SparseCholesky,
 };

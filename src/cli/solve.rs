@@ -3,8 +3,8 @@
 use cairn::core::RobustKernel;
 use cairn::g2o::{LoadReport, ReadOptions};
 use cairn::solvers::{
-    Algorithm, Factorization, IterationStats, LinearSolverConfig, Optimizer, Ordering,
-    SolverConfig, Summary,
+    Algorithm, Factorization, Initialization, IterationStats, LinearSolverConfig, Optimizer,
+    Ordering, SolverConfig, Summary, optimize_from,
 };
 use clap::{Args, ValueEnum};
 use std::fmt::Write as _;
@@ -19,6 +19,18 @@ enum SolverName {
     Lm,
     /// Powell's dogleg.
     Dogleg,
+}
+
+#[derive(Clone, Copy, Debug, PartialEq, Eq, ValueEnum)]
+enum InitName {
+    /// The file's vertices (spanning tree for files without VERTEX lines).
+    File,
+    /// Breadth-first spanning tree (odometry chaining) from the gauge.
+    SpanningTree,
+    /// Chordal relaxation: rotations first, then positions.
+    Chordal,
+    /// Solve from the file's vertices and from the chordal start; keep the lower χ².
+    Auto,
 }
 
 #[derive(Clone, Copy, Debug, PartialEq, Eq, ValueEnum)]
@@ -55,6 +67,9 @@ pub struct SolveArgs {
     /// Algorithm (g2o's default is Gauss-Newton too).
     #[arg(long, value_enum, default_value = "gn")]
     solver: SolverName,
+    /// Starting point.
+    #[arg(long, value_enum, default_value = "auto")]
+    init: InitName,
     /// Hold these vertex ids fixed (comma-separated), besides FIX lines.
     #[arg(long, value_delimiter = ',')]
     fix: Vec<i64>,
@@ -117,6 +132,15 @@ fn iteration_line(s: &IterationStats, edges: usize) -> String {
         let _ = write!(line, "\t radius= {r:.6e}");
     }
     line
+}
+
+fn start_name(init: Initialization) -> &'static str {
+    match init {
+        Initialization::File => "file",
+        Initialization::SpanningTree => "spanning-tree",
+        Initialization::Chordal => "chordal",
+        Initialization::Auto => "auto",
+    }
 }
 
 fn stats_csv(summary: &Summary) -> String {
@@ -297,20 +321,29 @@ pub fn run(a: SolveArgs) -> Result<(), String> {
         ..Default::default()
     };
     let t = Instant::now();
-    let mut optimizer = Optimizer::new(&graph, config).map_err(|e| format!("{name}: {e}"))?;
+    let init = match a.init {
+        InitName::File => Initialization::File,
+        InitName::SpanningTree => Initialization::SpanningTree,
+        InitName::Chordal => Initialization::Chordal,
+        InitName::Auto => Initialization::Auto,
+    };
     let quiet = a.quiet;
-    let summary = optimizer
-        .optimize_with(&mut graph, &mut |s| {
-            if !quiet {
-                eprintln!("{}", iteration_line(s, edges));
-            }
-        })
-        .map_err(|e| format!("{name}: {e}"))?;
+    let (summary, used) = optimize_from(&mut graph, config, init, &mut |start, s| {
+        if !quiet {
+            eprintln!(
+                "{}\t start= {}",
+                iteration_line(s, edges),
+                start_name(start)
+            );
+        }
+    })
+    .map_err(|e| format!("{name}: {e}"))?;
     let solve = t.elapsed().as_secs_f64();
 
     let marginals = if a.marginals.is_empty() {
         Vec::new()
     } else {
+        let mut optimizer = Optimizer::new(&graph, config).map_err(|e| format!("{name}: {e}"))?;
         optimizer
             .marginals(&graph, &a.marginals)
             .map_err(|e| format!("--marginals: {e}"))?
@@ -331,8 +364,9 @@ pub fn run(a: SolveArgs) -> Result<(), String> {
 
     if !a.quiet {
         eprintln!(
-            "{}: {:?} after {} iterations: χ² {:.6} → {:.6}; load {:.3}s, solve {:.3}s, write {:.3}s{}",
+            "{} from {} start: {:?} after {} iterations: χ² {:.6} → {:.6}; load {:.3}s, solve {:.3}s, write {:.3}s{}",
             config.algorithm.short_name(),
+            start_name(used),
             summary.termination,
             summary.iterations,
             summary.initial_chi2,
@@ -368,6 +402,7 @@ pub fn run(a: SolveArgs) -> Result<(), String> {
             "edges": edges,
             "load": report_json(&report),
             "summary": summary,
+            "init": start_name(used),
             "marginals": a.marginals.iter().zip(&marginals).map(|(id, m)| serde_json::json!({
                 "vertex": id,
                 "covariance": m.row_iter().map(|r| r.iter().copied().collect::<Vec<f64>>()).collect::<Vec<_>>(),
