@@ -105,3 +105,28 @@ pub fn position_rms(a: &Graph, b: &Graph) -> Option<f64> {
     }
     (n > 0).then(|| (sum / n as f64).sqrt())
 }
+
+/// Puts `kernel` on every edge, or with `loop_closures_only` on every edge except
+/// those between vertices with consecutive ids (odometry), g2o's
+/// `-nonSequential`. Returns how many edges got it.
+pub fn set_robust_kernel(
+    graph: &mut Graph,
+    kernel: cairn_core::RobustKernel,
+    loop_closures_only: bool,
+) -> usize {
+    let mut count = 0;
+    for k in 0..graph.num_edges() {
+        let ids: Vec<i64> = graph
+            .edge(k)
+            .vertices()
+            .iter()
+            .map(|&v| graph.vertex(v).id)
+            .collect();
+        let sequential = ids.len() == 2 && (ids[0] - ids[1]).abs() == 1;
+        if !(loop_closures_only && sequential) {
+            graph.set_robust_kernel(k, Some(kernel));
+            count += 1;
+        }
+    }
+    count
+}

@@ -6,21 +6,11 @@ mod common;
 
 use cairn::core::{Graph, RobustKernel};
 use cairn::g2o::{ReadOptions, read_file};
-use cairn::outliers::{add_false_loop_closures, position_rms};
+use cairn::outliers::{add_false_loop_closures, position_rms, set_robust_kernel};
 use cairn::solvers::{SolverConfig, optimize};
 
 fn on_loop_closures(graph: &mut Graph, kernel: RobustKernel) {
-    for k in 0..graph.num_edges() {
-        let ids: Vec<i64> = graph
-            .edge(k)
-            .vertices()
-            .iter()
-            .map(|&v| graph.vertex(v).id)
-            .collect();
-        if (ids[0] - ids[1]).abs() != 1 {
-            graph.set_robust_kernel(k, Some(kernel));
-        }
-    }
+    set_robust_kernel(graph, kernel, true);
 }
 
 fn recovery(file: &str, fractions: &[f64]) -> Vec<(f64, f64, f64)> {

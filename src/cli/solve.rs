@@ -278,18 +278,7 @@ pub fn run(a: SolveArgs) -> Result<(), String> {
         if a.robust_kernel_width.is_nan() || a.robust_kernel_width <= 0.0 {
             return Err("--robust-kernel-width must be positive".into());
         }
-        for k in 0..graph.num_edges() {
-            let ids: Vec<i64> = graph
-                .edge(k)
-                .vertices()
-                .iter()
-                .map(|&v| graph.vertex(v).id)
-                .collect();
-            let sequential = ids.len() == 2 && (ids[0] - ids[1]).abs() == 1;
-            if !(a.non_sequential && sequential) {
-                graph.set_robust_kernel(k, Some(kernel));
-            }
-        }
+        cairn::outliers::set_robust_kernel(&mut graph, kernel, a.non_sequential);
     }
     let load = t.elapsed().as_secs_f64();
     let (vertices, edges) = (graph.num_vertices(), graph.num_edges());
