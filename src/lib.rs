@@ -19,7 +19,9 @@
 
 pub use cairn_core as core;
 pub use cairn_g2o as g2o;
+pub use cairn_slam as slam;
 pub use cairn_solvers as solvers;
 
 pub mod generate;
 pub mod outliers;
+pub mod plot;

@@ -1,0 +1,257 @@
+//! The line a simulated car drives: the centre line of a track, found from
+//! its ordered boundaries.
+
+use crate::color::Color;
+use crate::track::{Track, TrackKind};
+use cairn_core::SE2;
+use nalgebra::Vector2;
+
+/// A polyline parameterised by arc length, closed for loop tracks.
+#[derive(Clone, Debug)]
+pub struct Course {
+    points: Vec<Vector2<f64>>,
+    /// Arc length at each point.
+    arc: Vec<f64>,
+    closed: bool,
+    length: f64,
+}
+
+/// Spacing of the resampled centre line (m).
+const STEP: f64 = 0.25;
+
+impl Course {
+    /// A course through `points`; a closed one joins the last point to the first.
+    pub fn new(points: Vec<Vector2<f64>>, closed: bool) -> Result<Course, String> {
+        if points.len() < 2 {
+            return Err("a course needs at least two points".into());
+        }
+        let mut arc = Vec::with_capacity(points.len());
+        let mut s = 0.0;
+        for i in 0..points.len() {
+            arc.push(s);
+            if i + 1 < points.len() {
+                s += (points[i + 1] - points[i]).norm();
+            }
+        }
+        let length = if closed {
+            s + (points[0] - points[points.len() - 1]).norm()
+        } else {
+            s
+        };
+        Ok(Course {
+            points,
+            arc,
+            closed,
+            length,
+        })
+    }
+
+    /// The centre line of a track: for a loop, midpoints between the ordered
+    /// blue boundary and the nearest point of the yellow one, smoothed; for an
+    /// acceleration track, the straight line from the start along its heading.
+    pub fn from_track(track: &Track) -> Result<Course, String> {
+        match track.kind {
+            TrackKind::Skidpad => Err("the simulator does not drive skidpad yet".into()),
+            TrackKind::Acceleration => {
+                let dir = Vector2::new(track.start.theta.cos(), track.start.theta.sin());
+                let end = track
+                    .cones
+                    .iter()
+                    .map(|c| (c.position - track.start.t).dot(&dir))
+                    .fold(0.0, f64::max);
+                let n = (end / STEP).ceil().max(1.0) as usize;
+                let points = (0..=n)
+                    .map(|k| track.start.t + dir * (end * k as f64 / n as f64))
+                    .collect();
+                Course::new(points, false)
+            }
+            TrackKind::Loop => {
+                let side = |color| -> Vec<Vector2<f64>> {
+                    track.of_color(color).iter().map(|&i| track.cones[i].position).collect()
+                };
+                let blue = order_boundary(&side(Color::Blue), &track.start);
+                let yellow = order_boundary(&side(Color::Yellow), &track.start);
+                if blue.len() < 3 || yellow.len() < 3 {
+                    return Err("a loop track needs blue and yellow boundaries".into());
+                }
+                let blue = Course::new(blue, true)?.resampled(0.5);
+                let yellow = Course::new(yellow, true)?;
+                let mids: Vec<_> = blue
+                    .points
+                    .iter()
+                    .map(|b| 0.5 * (b + yellow.nearest_point(b)))
+                    .collect();
+                let smooth = smooth_closed(&mids, 1);
+                let course = Course::new(smooth, true)?.resampled(STEP);
+                let cones: Vec<_> = track.cones.iter().map(|c| c.position).collect();
+                let clearance = course.clearance(&cones);
+                if clearance < 0.7 {
+                    return Err(format!(
+                        "no centre line found: the best guess passes {clearance:.2} m from a cone \
+                         (boundaries too intertwined for the nearest-cone walk)"
+                    ));
+                }
+                Ok(course)
+            }
+        }
+    }
+
+    /// Total length (m).
+    pub fn length(&self) -> f64 {
+        self.length
+    }
+
+    /// Whether the course is a loop.
+    pub fn is_closed(&self) -> bool {
+        self.closed
+    }
+
+    /// The points of the polyline.
+    pub fn points(&self) -> &[Vector2<f64>] {
+        &self.points
+    }
+
+    /// The point at arc length `s` (wrapped on a loop, clamped otherwise).
+    pub fn point_at(&self, s: f64) -> Vector2<f64> {
+        let s = if self.closed {
+            s.rem_euclid(self.length)
+        } else {
+            s.clamp(0.0, self.length)
+        };
+        let i = match self.arc.binary_search_by(|a| a.total_cmp(&s)) {
+            Ok(i) => i,
+            Err(i) => i - 1,
+        };
+        let a = self.points[i];
+        let b = if i + 1 < self.points.len() {
+            self.points[i + 1]
+        } else if self.closed {
+            self.points[0]
+        } else {
+            return a;
+        };
+        let seg = (b - a).norm();
+        if seg <= 0.0 {
+            return a;
+        }
+        a + (b - a) * ((s - self.arc[i]) / seg)
+    }
+
+    /// Arc length of the point nearest to `p`, searched within `window`
+    /// metres around `hint` (the whole course when `hint` is `None`).
+    pub fn project(&self, p: &Vector2<f64>, hint: Option<f64>, window: f64) -> f64 {
+        let mut best = (f64::INFINITY, 0.0);
+        let n = self.segments();
+        for i in 0..n {
+            if let Some(h) = hint {
+                let mut d = (self.arc[i] - h).abs();
+                if self.closed {
+                    d = d.min(self.length - d);
+                }
+                if d > window {
+                    continue;
+                }
+            }
+            let (a, b) = self.segment(i);
+            let ab = b - a;
+            let len2 = ab.norm_squared();
+            let u = if len2 > 0.0 {
+                ((p - a).dot(&ab) / len2).clamp(0.0, 1.0)
+            } else {
+                0.0
+            };
+            let d = (a + ab * u - p).norm_squared();
+            if d < best.0 {
+                best = (d, self.arc[i] + u * len2.sqrt());
+            }
+        }
+        best.1
+    }
+
+    fn segments(&self) -> usize {
+        if self.closed {
+            self.points.len()
+        } else {
+            self.points.len() - 1
+        }
+    }
+
+    fn segment(&self, i: usize) -> (Vector2<f64>, Vector2<f64>) {
+        (self.points[i], self.points[(i + 1) % self.points.len()])
+    }
+
+    fn nearest_point(&self, p: &Vector2<f64>) -> Vector2<f64> {
+        self.point_at(self.project(p, None, 0.0))
+    }
+
+    /// The same course resampled at about `step` metres.
+    pub fn resampled(&self, step: f64) -> Course {
+        let n = (self.length / step).round().max(2.0) as usize;
+        let count = if self.closed { n } else { n + 1 };
+        let points = (0..count)
+            .map(|k| self.point_at(self.length * k as f64 / n as f64))
+            .collect();
+        Course::new(points, self.closed).expect("at least two points")
+    }
+
+    /// The smallest distance from the course to any of `points` (cone clearance).
+    pub fn clearance(&self, points: &[Vector2<f64>]) -> f64 {
+        points
+            .iter()
+            .map(|p| (self.nearest_point(p) - p).norm())
+            .fold(f64::INFINITY, f64::min)
+    }
+}
+
+/// Orders the cones of one boundary by walking from the start: each next cone
+/// is the near one that best continues the current direction.
+pub fn order_boundary(cones: &[Vector2<f64>], start: &SE2) -> Vec<Vector2<f64>> {
+    let mut left: Vec<Vector2<f64>> = cones.to_vec();
+    let mut ordered = Vec::with_capacity(cones.len());
+    let mut dir = Vector2::new(start.theta.cos(), start.theta.sin());
+    // First cone: the nearest one that is not behind the start.
+    let first = left
+        .iter()
+        .enumerate()
+        .filter(|(_, c)| (*c - start.t).dot(&dir) > -1.0)
+        .min_by(|a, b| (a.1 - start.t).norm().total_cmp(&(b.1 - start.t).norm()))
+        .map(|(i, _)| i);
+    let Some(first) = first else {
+        return ordered;
+    };
+    let mut current = left.swap_remove(first);
+    ordered.push(current);
+    while !left.is_empty() {
+        let next = left
+            .iter()
+            .enumerate()
+            .map(|(i, c)| {
+                let d = (c - current).norm();
+                let cos = if d > 0.0 { (c - current).dot(&dir) / d } else { 1.0 };
+                (i, d * (1.0 + 1.5 * (1.0 - cos)), d)
+            })
+            .filter(|&(_, _, d)| d < 12.0)
+            .min_by(|a, b| a.1.total_cmp(&b.1));
+        let Some((i, _, d)) = next else { break };
+        let c = left.swap_remove(i);
+        if d > 0.0 {
+            dir = (c - current) / d;
+        }
+        current = c;
+        ordered.push(c);
+    }
+    ordered
+}
+
+fn smooth_closed(points: &[Vector2<f64>], half_window: usize) -> Vec<Vector2<f64>> {
+    let n = points.len();
+    (0..n)
+        .map(|i| {
+            let mut sum = Vector2::zeros();
+            for k in 0..=2 * half_window {
+                sum += points[(i + n + k - half_window) % n];
+            }
+            sum / (2 * half_window + 1) as f64
+        })
+        .collect()
+}

@@ -1,0 +1,17 @@
+//! Formula Student cone SLAM on Cairn.
+//!
+//! - [`track`], [`trackgen`], [`course`]: ground-truth tracks (EUFS, AMZ fssim,
+//!   EPFL), random rule-conforming tracks, and the centre line a car drives;
+//! - [`sim`]: a seeded simulator writing the input log and its ground truth;
+//! - [`log`], [`files`]: the interchange formats of `shared/fs/FORMAT.md`.
+
+pub mod color;
+pub mod course;
+pub mod files;
+pub mod log;
+pub mod sim;
+pub mod track;
+pub mod trackgen;
+
+pub use color::Color;
+pub use track::{Cone, Track, TrackKind};

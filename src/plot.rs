@@ -1,0 +1,122 @@
+//! Pictures of a cone-SLAM run: the estimated map over the true cones and the
+//! estimated trajectory over the true one. SVG or PNG by the file's extension.
+
+use cairn_slam::{Color as ConeColor, Cone};
+use nalgebra::Vector2;
+use plotters::coord::Shift;
+use plotters::prelude::*;
+use std::path::Path;
+
+/// What to draw; empty parts are left out.
+#[derive(Default)]
+pub struct MapPlot<'a> {
+    /// Title above the plot.
+    pub title: String,
+    /// True cones (hollow circles).
+    pub truth: &'a [Cone],
+    /// Estimated cones (filled dots).
+    pub map: &'a [Cone],
+    /// True trajectory (grey line).
+    pub true_path: &'a [Vector2<f64>],
+    /// Estimated trajectory (red line).
+    pub path: &'a [Vector2<f64>],
+}
+
+fn rgb(color: ConeColor) -> RGBColor {
+    match color {
+        ConeColor::Blue => RGBColor(30, 80, 220),
+        ConeColor::Yellow => RGBColor(230, 180, 0),
+        ConeColor::Orange => RGBColor(255, 120, 0),
+        ConeColor::BigOrange => RGBColor(200, 60, 0),
+        ConeColor::Unknown => RGBColor(120, 120, 120),
+    }
+}
+
+/// Writes the plot to `path` (`.png` for a bitmap, otherwise SVG).
+pub fn draw(plot: &MapPlot, path: &Path) -> Result<(), String> {
+    let size = (1000, 800);
+    let is_png = path
+        .extension()
+        .is_some_and(|e| e.eq_ignore_ascii_case("png"));
+    let result = if is_png {
+        draw_on(plot, BitMapBackend::new(path, size).into_drawing_area())
+    } else {
+        draw_on(plot, SVGBackend::new(path, size).into_drawing_area())
+    };
+    result.map_err(|e| format!("{}: {e}", path.display()))
+}
+
+fn draw_on<DB: DrawingBackend>(
+    plot: &MapPlot,
+    area: DrawingArea<DB, Shift>,
+) -> Result<(), Box<dyn std::error::Error>>
+where
+    DB::ErrorType: 'static,
+{
+    area.fill(&WHITE)?;
+    let points = plot
+        .truth
+        .iter()
+        .chain(plot.map)
+        .map(|c| c.position)
+        .chain(plot.true_path.iter().copied())
+        .chain(plot.path.iter().copied());
+    let (mut lo, mut hi) = (Vector2::repeat(f64::INFINITY), Vector2::repeat(f64::NEG_INFINITY));
+    for p in points {
+        lo = lo.inf(&p);
+        hi = hi.sup(&p);
+    }
+    if !lo.x.is_finite() {
+        lo = Vector2::zeros();
+        hi = Vector2::repeat(1.0);
+    }
+    // Equal scales on both axes: widen the narrower range.
+    let (w, h) = (hi.x - lo.x, hi.y - lo.y);
+    let half = 0.5 * (w.max(h * 1.2)) + 2.0;
+    let centre = 0.5 * (lo + hi);
+    let (xr, yr) = (
+        centre.x - half..centre.x + half,
+        centre.y - half / 1.2..centre.y + half / 1.2,
+    );
+    let mut chart = ChartBuilder::on(&area)
+        .caption(&plot.title, ("sans-serif", 22))
+        .margin(10)
+        .x_label_area_size(35)
+        .y_label_area_size(45)
+        .build_cartesian_2d(xr, yr)?;
+    chart.configure_mesh().x_desc("x (m)").y_desc("y (m)").draw()?;
+    if !plot.true_path.is_empty() {
+        chart
+            .draw_series(LineSeries::new(
+                plot.true_path.iter().map(|p| (p.x, p.y)),
+                RGBColor(150, 150, 150).stroke_width(2),
+            ))?
+            .label("true trajectory")
+            .legend(|(x, y)| PathElement::new([(x, y), (x + 20, y)], RGBColor(150, 150, 150)));
+    }
+    if !plot.path.is_empty() {
+        chart
+            .draw_series(LineSeries::new(plot.path.iter().map(|p| (p.x, p.y)), RED.stroke_width(1)))?
+            .label("estimated trajectory")
+            .legend(|(x, y)| PathElement::new([(x, y), (x + 20, y)], RED));
+    }
+    chart.draw_series(
+        plot.truth
+            .iter()
+            .map(|c| Circle::new((c.position.x, c.position.y), 5, rgb(c.color).stroke_width(1))),
+    )?;
+    chart.draw_series(
+        plot.map
+            .iter()
+            .map(|c| Circle::new((c.position.x, c.position.y), 2, rgb(c.color).filled())),
+    )?;
+    if !plot.true_path.is_empty() || !plot.path.is_empty() {
+        chart
+            .configure_series_labels()
+            .background_style(WHITE.mix(0.8))
+            .border_style(BLACK)
+            .draw()?;
+    }
+    area.present()?;
+    Ok(())
+}
