@@ -61,7 +61,10 @@ where
         .map(|c| c.position)
         .chain(plot.true_path.iter().copied())
         .chain(plot.path.iter().copied());
-    let (mut lo, mut hi) = (Vector2::repeat(f64::INFINITY), Vector2::repeat(f64::NEG_INFINITY));
+    let (mut lo, mut hi) = (
+        Vector2::repeat(f64::INFINITY),
+        Vector2::repeat(f64::NEG_INFINITY),
+    );
     for p in points {
         lo = lo.inf(&p);
         hi = hi.sup(&p);
@@ -84,7 +87,11 @@ where
         .x_label_area_size(35)
         .y_label_area_size(45)
         .build_cartesian_2d(xr, yr)?;
-    chart.configure_mesh().x_desc("x (m)").y_desc("y (m)").draw()?;
+    chart
+        .configure_mesh()
+        .x_desc("x (m)")
+        .y_desc("y (m)")
+        .draw()?;
     if !plot.true_path.is_empty() {
         chart
             .draw_series(LineSeries::new(
@@ -96,15 +103,20 @@ where
     }
     if !plot.path.is_empty() {
         chart
-            .draw_series(LineSeries::new(plot.path.iter().map(|p| (p.x, p.y)), RED.stroke_width(1)))?
+            .draw_series(LineSeries::new(
+                plot.path.iter().map(|p| (p.x, p.y)),
+                RED.stroke_width(1),
+            ))?
             .label("estimated trajectory")
             .legend(|(x, y)| PathElement::new([(x, y), (x + 20, y)], RED));
     }
-    chart.draw_series(
-        plot.truth
-            .iter()
-            .map(|c| Circle::new((c.position.x, c.position.y), 5, rgb(c.color).stroke_width(1))),
-    )?;
+    chart.draw_series(plot.truth.iter().map(|c| {
+        Circle::new(
+            (c.position.x, c.position.y),
+            5,
+            rgb(c.color).stroke_width(1),
+        )
+    }))?;
     chart.draw_series(
         plot.map
             .iter()

@@ -67,7 +67,11 @@ impl Course {
             }
             TrackKind::Loop => {
                 let side = |color| -> Vec<Vector2<f64>> {
-                    track.of_color(color).iter().map(|&i| track.cones[i].position).collect()
+                    track
+                        .of_color(color)
+                        .iter()
+                        .map(|&i| track.cones[i].position)
+                        .collect()
                 };
                 let blue = order_boundary(&side(Color::Blue), &track.start);
                 let yellow = order_boundary(&side(Color::Yellow), &track.start);
@@ -227,7 +231,11 @@ pub fn order_boundary(cones: &[Vector2<f64>], start: &SE2) -> Vec<Vector2<f64>> 
             .enumerate()
             .map(|(i, c)| {
                 let d = (c - current).norm();
-                let cos = if d > 0.0 { (c - current).dot(&dir) / d } else { 1.0 };
+                let cos = if d > 0.0 {
+                    (c - current).dot(&dir) / d
+                } else {
+                    1.0
+                };
                 (i, d * (1.0 + 1.5 * (1.0 - cos)), d)
             })
             .filter(|&(_, _, d)| d < 12.0)

@@ -7,8 +7,11 @@
 
 pub mod color;
 pub mod course;
+pub mod eval;
 pub mod files;
+pub mod frontend;
 pub mod log;
+pub mod run;
 pub mod sim;
 pub mod track;
 pub mod trackgen;

@@ -138,7 +138,9 @@ fn finite(obj: &Map<String, Value>, key: &str) -> Result<Option<f64>, String> {
     match obj.get(key) {
         None | Some(Value::Null) => Ok(None),
         Some(v) => {
-            let x = v.as_f64().ok_or_else(|| format!("'{key}' is not a number"))?;
+            let x = v
+                .as_f64()
+                .ok_or_else(|| format!("'{key}' is not a number"))?;
             if x.is_finite() {
                 Ok(Some(x))
             } else {

@@ -210,7 +210,9 @@ pub fn simulate(track: &Track, course: &Course, config: &SimConfig) -> Simulatio
     while travelled < distance && step < max_steps {
         let t = step as f64 * dt;
         // Pure pursuit toward the centre line `lookahead` metres ahead.
-        let target = pose.inverse().transform_point(&course.point_at(s + config.lookahead));
+        let target = pose
+            .inverse()
+            .transform_point(&course.point_at(s + config.lookahead));
         let alpha = target.y.atan2(target.x);
         let steer = (2.0 * config.wheelbase * alpha.sin() / target.norm().max(0.5))
             .atan()
@@ -225,8 +227,9 @@ pub fn simulate(track: &Track, course: &Course, config: &SimConfig) -> Simulatio
             steer: Some(steer + normal(odo.steer_sigma).sample(&mut rng)),
             vy: None,
         });
-        if step % scan_every == 0 {
-            let (cones, sources) = detect(track, &pose, &config.preset.sensor, &mut tracker, &mut rng);
+        if step.is_multiple_of(scan_every) {
+            let (cones, sources) =
+                detect(track, &pose, &config.preset.sensor, &mut tracker, &mut rng);
             for (det, source) in sources.iter().enumerate() {
                 truth_associations.push(Association {
                     scan,
@@ -337,7 +340,11 @@ fn detect(
         let r = rng.random_range(1.0..sensor.max_range);
         let b = rng.random_range(-sensor.fov / 2.0..sensor.fov / 2.0);
         let color = [Color::Blue, Color::Yellow, Color::Unknown][rng.random_range(0..3)];
-        found.push((Source::FalsePositive, Vector2::new(r * b.cos(), r * b.sin()), color));
+        found.push((
+            Source::FalsePositive,
+            Vector2::new(r * b.cos(), r * b.sin()),
+            color,
+        ));
     }
     found.shuffle(rng);
     tracker.scan += 1;

@@ -102,7 +102,11 @@ impl Track {
             .map(|s| s.to_string_lossy().into_owned())
             .unwrap_or_default();
         let ext = path.extension().and_then(|e| e.to_str()).unwrap_or("");
-        Track::parse(&name, &text, ext.eq_ignore_ascii_case("yaml") || ext.eq_ignore_ascii_case("yml"))
+        Track::parse(
+            &name,
+            &text,
+            ext.eq_ignore_ascii_case("yaml") || ext.eq_ignore_ascii_case("yml"),
+        )
     }
 
     /// Parses a track from text; `yaml` selects the AMZ fssim format.
@@ -188,7 +192,11 @@ fn parse_eufs_csv(text: &str) -> Result<Track, TrackError> {
                 let mut variance = [0.0; 3];
                 for v in variance.iter_mut() {
                     let field = fields.next().unwrap_or("").trim();
-                    *v = field.parse::<f64>().ok().filter(|x| x.is_finite()).unwrap_or(0.0);
+                    *v = field
+                        .parse::<f64>()
+                        .ok()
+                        .filter(|x| x.is_finite())
+                        .unwrap_or(0.0);
                 }
                 cone.covariance = Matrix2::new(variance[0], variance[2], variance[2], variance[1]);
                 track.cones.push(cone);
@@ -304,7 +312,10 @@ fn parse_fssim_yaml(text: &str) -> Result<Track, TrackError> {
         };
         for p in items {
             if p.len() < 2 {
-                return Err(parse_error(line, format!("a point under '{key}' needs x and y")));
+                return Err(parse_error(
+                    line,
+                    format!("a point under '{key}' needs x and y"),
+                ));
             }
             let cone = Cone::new(p[0], p[1], color);
             let duplicate = track
@@ -327,7 +338,12 @@ pub fn map_to_csv(cones: &[Cone]) -> String {
         let _ = writeln!(
             out,
             "{},{:?},{:?},0.0,{:?},{:?},{:?}",
-            c.color, c.position.x, c.position.y, c.covariance[(0, 0)], c.covariance[(1, 1)], c.covariance[(0, 1)]
+            c.color,
+            c.position.x,
+            c.position.y,
+            c.covariance[(0, 0)],
+            c.covariance[(1, 1)],
+            c.covariance[(0, 1)]
         );
     }
     out

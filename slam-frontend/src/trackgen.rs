@@ -50,14 +50,22 @@ fn attempt(rng: &mut StdRng, seed: u64, rules: &TrackRules) -> Option<(Track, Co
     let harmonics: Vec<(f64, f64, f64)> = (2..=5)
         .map(|k| {
             let k = k as f64;
-            (k, rng.random_range(0.0..0.3 / k), rng.random_range(0.0..TAU))
+            (
+                k,
+                rng.random_range(0.0..0.3 / k),
+                rng.random_range(0.0..TAU),
+            )
         })
         .collect();
     let n = 2000;
     let raw: Vec<Vector2<f64>> = (0..n)
         .map(|i| {
             let th = TAU * i as f64 / n as f64;
-            let r = 1.0 + harmonics.iter().map(|(k, a, p)| a * (k * th + p).cos()).sum::<f64>();
+            let r = 1.0
+                + harmonics
+                    .iter()
+                    .map(|(k, a, p)| a * (k * th + p).cos())
+                    .sum::<f64>();
             Vector2::new(r * th.cos(), r * th.sin())
         })
         .collect();
@@ -69,7 +77,10 @@ fn attempt(rng: &mut StdRng, seed: u64, rules: &TrackRules) -> Option<(Track, Co
     let p0 = raw[0] * scale;
     let heading = (raw[1] - raw[0]).y.atan2((raw[1] - raw[0]).x);
     let to_start = SE2::new(p0.x, p0.y, heading).inverse();
-    let centre: Vec<Vector2<f64>> = raw.iter().map(|p| to_start.transform_point(&(p * scale))).collect();
+    let centre: Vec<Vector2<f64>> = raw
+        .iter()
+        .map(|p| to_start.transform_point(&(p * scale)))
+        .collect();
     let course = Course::new(centre, true).ok()?.resampled(0.25);
     let pts = course.points();
     let m = pts.len();
@@ -78,7 +89,8 @@ fn attempt(rng: &mut StdRng, seed: u64, rules: &TrackRules) -> Option<(Track, Co
     for i in 0..m {
         let (a, b, c) = (pts[(i + m - k) % m], pts[i], pts[(i + k) % m]);
         let cross = (b - a).perp(&(c - b));
-        let radius = (b - a).norm() * (c - b).norm() * (c - a).norm() / (2.0 * cross.abs()).max(1e-12);
+        let radius =
+            (b - a).norm() * (c - b).norm() * (c - a).norm() / (2.0 * cross.abs()).max(1e-12);
         if radius < rules.min_radius {
             return None;
         }

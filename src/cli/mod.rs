@@ -2,6 +2,8 @@
 
 mod check;
 mod corrupt;
+mod fs;
+mod fs_report;
 mod generate;
 mod solve;
 
@@ -26,6 +28,14 @@ enum Command {
     Corrupt(corrupt::CorruptArgs),
     /// Write a synthetic benchmark graph (Manhattan world or sphere) in g2o format.
     Generate(generate::GenerateArgs),
+    /// Simulate a Formula Student run: cone detections and odometry along a track.
+    FsSim(fs::SimArgs),
+    /// Cone SLAM on a log: map, trajectory and associations.
+    FsSlam(fs::SlamArgs),
+    /// Score a cone-SLAM run against the simulation's truth.
+    FsEval(fs::EvalArgs),
+    /// Simulate, map and score every shared and some random tracks into a report.
+    FsReport(fs_report::ReportArgs),
 }
 
 /// Runs the parsed command.
@@ -35,6 +45,10 @@ pub fn run(cli: Cli) -> Result<(), String> {
         Command::Generate(args) => generate::run(args),
         Command::Check(args) => check::run(args),
         Command::Corrupt(args) => corrupt::run(args),
+        Command::FsSim(args) => fs::run_sim(args),
+        Command::FsSlam(args) => fs::run_slam(args),
+        Command::FsEval(args) => fs::run_eval(args),
+        Command::FsReport(args) => fs_report::run(args),
     }
 }
 

@@ -1,0 +1,54 @@
+//! Simulates two laps of a random track and prints the scores.
+//!
+//! `cargo run --release -p cairn-slam --example fs_quick -- [SEED] [METHOD] [TRACK_FILE]`
+
+use cairn_slam::Track;
+use cairn_slam::course::Course;
+use cairn_slam::frontend::FrontEndConfig;
+use cairn_slam::frontend::association::AssociationMethod;
+use cairn_slam::sim::{SimConfig, simulate};
+use cairn_slam::trackgen::{TrackRules, random_track};
+
+fn main() -> Result<(), Box<dyn std::error::Error>> {
+    let args: Vec<String> = std::env::args().skip(1).collect();
+    let seed = args.first().and_then(|s| s.parse().ok()).unwrap_or(1);
+    let method = args
+        .get(1)
+        .and_then(|m| AssociationMethod::by_name(m))
+        .unwrap_or(AssociationMethod::Tracking);
+    let (track, course) = match args.get(2) {
+        Some(file) => {
+            let track = Track::load(std::path::Path::new(file))?;
+            let course = Course::from_track(&track)?;
+            (track, course)
+        }
+        None => random_track(seed, &TrackRules::default()),
+    };
+    let preset = args
+        .get(3)
+        .and_then(|p| cairn_slam::sim::Preset::by_name(p))
+        .unwrap_or_else(cairn_slam::sim::Preset::standard);
+    let sim = simulate(
+        &track,
+        &course,
+        &SimConfig {
+            seed,
+            preset,
+            ..SimConfig::default()
+        },
+    );
+    let config = FrontEndConfig {
+        association: method,
+        ..FrontEndConfig::default()
+    };
+    let (slam, report) = cairn_slam::run::run_and_score(&sim, config);
+    println!(
+        "{} ({:.0} m): closures {} mode {:?}\n{}",
+        track.name,
+        course.length(),
+        slam.loop_closures(),
+        slam.mode(),
+        serde_json::to_string_pretty(&report)?
+    );
+    Ok(())
+}

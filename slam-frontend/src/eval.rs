@@ -1,0 +1,227 @@
+//! Scoring a run against the truth: map RMSE (nearest true cone, with and
+//! without a best rigid alignment, overall and per colour), trajectory error
+//! (ATE), data-association accuracy, missed and phantom landmarks, latency.
+
+use crate::color::Color;
+use crate::files::{Association, StampedPose};
+use crate::track::Cone;
+use nalgebra::{Matrix2, Vector2};
+use serde::Serialize;
+use std::collections::HashMap;
+
+/// A landmark farther than this from every true cone is a phantom (m).
+pub const MATCH_RADIUS: f64 = 1.0;
+
+/// Everything `cairn fs-eval` reports.
+#[derive(Clone, Debug, Default, Serialize)]
+pub struct Report {
+    /// Landmarks in the estimated map.
+    pub landmarks: usize,
+    /// RMSE of matched landmarks to their nearest true cone (m).
+    pub map_rmse: f64,
+    /// The same after the best rigid alignment of the map to the truth (m).
+    pub map_rmse_aligned: f64,
+    /// Per colour (of the true cone): (colour, RMSE, matched landmarks).
+    pub map_rmse_by_color: Vec<(String, f64, usize)>,
+    /// Landmarks with no true cone within [`MATCH_RADIUS`].
+    pub phantom: usize,
+    /// True cones that were detected but have no landmark within [`MATCH_RADIUS`].
+    pub missed: usize,
+    /// Position RMSE of the trajectory against the truth at the same times (m).
+    pub ate: f64,
+    /// The same after the best rigid alignment (m).
+    pub ate_aligned: f64,
+    /// Fraction of detections associated correctly (see [`association_accuracy`]).
+    pub association_accuracy: f64,
+    /// Detections scored.
+    pub detections: usize,
+    /// Update latency percentiles (ms): p50, p99, max.
+    pub latency_ms: Option<[f64; 3]>,
+    /// Longest loop-closure optimisation (ms).
+    pub loop_closure_ms: Option<f64>,
+}
+
+/// Scores a run.
+pub fn evaluate(
+    truth_map: &[Cone],
+    map: &[Cone],
+    truth_trajectory: &[StampedPose],
+    trajectory: &[StampedPose],
+    truth_associations: &[Association],
+    associations: &[Association],
+) -> Report {
+    let mut report = Report {
+        landmarks: map.len(),
+        ..Default::default()
+    };
+    // Map: nearest true cone for every landmark.
+    let mut pairs = Vec::new();
+    let mut by_color: HashMap<Color, (f64, usize)> = HashMap::new();
+    for lm in map {
+        let nearest = truth_map
+            .iter()
+            .enumerate()
+            .map(|(i, c)| (i, (c.position - lm.position).norm()))
+            .min_by(|a, b| a.1.total_cmp(&b.1));
+        match nearest {
+            Some((i, d)) if d <= MATCH_RADIUS => {
+                pairs.push((lm.position, truth_map[i].position));
+                let e = by_color.entry(truth_map[i].color).or_default();
+                e.0 += d * d;
+                e.1 += 1;
+            }
+            _ => report.phantom += 1,
+        }
+    }
+    report.map_rmse = rms(pairs.iter().map(|(a, b)| (a - b).norm()));
+    let (est, truth): (Vec<_>, Vec<_>) = pairs.iter().copied().unzip();
+    report.map_rmse_aligned = aligned_rms(&est, &truth);
+    let mut colors: Vec<_> = by_color.into_iter().collect();
+    colors.sort_by_key(|(c, _)| *c);
+    report.map_rmse_by_color = colors
+        .into_iter()
+        .map(|(c, (sum, n))| (c.to_string(), (sum / n as f64).sqrt(), n))
+        .collect();
+    let seen: std::collections::HashSet<usize> = truth_associations
+        .iter()
+        .filter_map(|a| a.landmark)
+        .collect();
+    report.missed = seen
+        .iter()
+        .filter(|&&i| {
+            map.iter()
+                .all(|lm| (lm.position - truth_map[i].position).norm() > MATCH_RADIUS)
+        })
+        .count();
+    // Trajectory at the estimate's times.
+    let mut traj_est = Vec::new();
+    let mut traj_truth = Vec::new();
+    for p in trajectory {
+        if let Some(q) = interpolate(truth_trajectory, p.t) {
+            traj_est.push(p.pose.t);
+            traj_truth.push(q);
+        }
+    }
+    report.ate = rms(traj_est
+        .iter()
+        .zip(&traj_truth)
+        .map(|(a, b)| (a - b).norm()));
+    report.ate_aligned = aligned_rms(&traj_est, &traj_truth);
+    let (accuracy, n) = association_accuracy(truth_associations, associations);
+    report.association_accuracy = accuracy;
+    report.detections = n;
+    report
+}
+
+/// The fraction of detections associated correctly. Each landmark stands
+/// for the true cone most of its detections came from; a detection is
+/// correct when its landmark stands for its true cone, or when a false
+/// positive was rejected. Returns (accuracy, detections scored).
+pub fn association_accuracy(truth: &[Association], estimate: &[Association]) -> (f64, usize) {
+    let truth_of: HashMap<(usize, usize), Option<usize>> = truth
+        .iter()
+        .map(|a| ((a.scan, a.det), a.landmark))
+        .collect();
+    let mut votes: HashMap<usize, HashMap<Option<usize>, usize>> = HashMap::new();
+    for a in estimate {
+        if let (Some(l), Some(t)) = (a.landmark, truth_of.get(&(a.scan, a.det))) {
+            *votes.entry(l).or_default().entry(*t).or_default() += 1;
+        }
+    }
+    let stands_for: HashMap<usize, Option<usize>> = votes
+        .into_iter()
+        .map(|(l, v)| {
+            (
+                l,
+                v.into_iter()
+                    .max_by_key(|(t, n)| (*n, *t))
+                    .and_then(|(t, _)| t),
+            )
+        })
+        .collect();
+    let mut correct = 0;
+    let mut total = 0;
+    for a in estimate {
+        let Some(t) = truth_of.get(&(a.scan, a.det)) else {
+            continue;
+        };
+        total += 1;
+        let ok = match (a.landmark, t) {
+            (None, None) => true,
+            (Some(l), Some(c)) => stands_for.get(&l) == Some(&Some(*c)),
+            _ => false,
+        };
+        correct += usize::from(ok);
+    }
+    (
+        if total > 0 {
+            correct as f64 / total as f64
+        } else {
+            0.0
+        },
+        total,
+    )
+}
+
+/// The true position at time `t`, linearly interpolated.
+fn interpolate(truth: &[StampedPose], t: f64) -> Option<Vector2<f64>> {
+    let i = truth.partition_point(|p| p.t < t);
+    if i == truth.len() {
+        return None;
+    }
+    if i == 0 || truth[i].t == t {
+        return (truth[i].t - t < 1e-6).then_some(truth[i].pose.t);
+    }
+    let (a, b) = (&truth[i - 1], &truth[i]);
+    let u = (t - a.t) / (b.t - a.t);
+    Some(a.pose.t + (b.pose.t - a.pose.t) * u)
+}
+
+fn rms(errors: impl Iterator<Item = f64>) -> f64 {
+    let (sum, n) = errors.fold((0.0, 0usize), |(s, n), e| (s + e * e, n + 1));
+    if n == 0 { 0.0 } else { (sum / n as f64).sqrt() }
+}
+
+/// RMS distance after the least-squares rigid alignment of `a` onto `b`
+/// (Arun, Huang & Blostein: SVD of the cross-covariance, reflection excluded).
+pub fn aligned_rms(a: &[Vector2<f64>], b: &[Vector2<f64>]) -> f64 {
+    if a.len() < 2 {
+        return rms(a.iter().zip(b).map(|(p, q)| (p - q).norm()));
+    }
+    let (r, t) = rigid_alignment(a, b);
+    rms(a.iter().zip(b).map(|(p, q)| (r * p + t - q).norm()))
+}
+
+/// The rotation and translation minimising Σ‖R aᵢ + t − bᵢ‖².
+pub fn rigid_alignment(a: &[Vector2<f64>], b: &[Vector2<f64>]) -> (Matrix2<f64>, Vector2<f64>) {
+    let n = a.len().min(b.len()).max(1) as f64;
+    let ca = a.iter().sum::<Vector2<f64>>() / n;
+    let cb = b.iter().sum::<Vector2<f64>>() / n;
+    let mut h = Matrix2::zeros();
+    for (p, q) in a.iter().zip(b) {
+        h += (p - ca) * (q - cb).transpose();
+    }
+    let svd = h.svd(true, true);
+    let (Some(u), Some(vt)) = (svd.u, svd.v_t) else {
+        return (Matrix2::identity(), cb - ca);
+    };
+    let mut v = vt.transpose();
+    let mut r = v * u.transpose();
+    if r.determinant() < 0.0 {
+        // A reflection fits better than any rotation: flip the weakest axis.
+        v.column_mut(1).neg_mut();
+        r = v * u.transpose();
+    }
+    (r, cb - r * ca)
+}
+
+/// p50, p99 and max of a list of durations in seconds, in milliseconds.
+pub fn latency_ms(seconds: &[f64]) -> Option<[f64; 3]> {
+    if seconds.is_empty() {
+        return None;
+    }
+    let mut s = seconds.to_vec();
+    s.sort_by(f64::total_cmp);
+    let at = |q: f64| s[((s.len() - 1) as f64 * q).round() as usize] * 1e3;
+    Some([at(0.5), at(0.99), at(1.0)])
+}

@@ -1,0 +1,242 @@
+//! Data association: which map landmark each detection of a scan is.
+//!
+//! Every method works on the same [`Candidates`]: for each detection, the
+//! individually compatible landmarks (Mahalanobis χ² gate on the innovation,
+//! plus a penalty for a colour that contradicts the landmark's votes).
+
+use nalgebra::{DMatrix, DVector, Matrix2, SMatrix, Vector2};
+
+/// How detections are matched to landmarks.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
+pub enum AssociationMethod {
+    /// Maximum likelihood with individual-compatibility gating: the most
+    /// likely pairs first, each landmark used once.
+    MaximumLikelihood,
+    /// Sequential compatibility nearest neighbour: detections in scan order,
+    /// each takes its nearest compatible landmark still free.
+    Sequential,
+    /// Joint compatibility branch and bound (Neira & Tardós 2001).
+    Jcbb,
+    /// The tracker's ids first (checked by Bhattacharyya distance), then
+    /// maximum likelihood for the rest.
+    Tracking,
+}
+
+impl AssociationMethod {
+    /// All methods, for reports.
+    pub const ALL: [AssociationMethod; 4] = [
+        AssociationMethod::MaximumLikelihood,
+        AssociationMethod::Sequential,
+        AssociationMethod::Jcbb,
+        AssociationMethod::Tracking,
+    ];
+
+    /// The command-line name.
+    pub fn name(self) -> &'static str {
+        match self {
+            AssociationMethod::MaximumLikelihood => "ml",
+            AssociationMethod::Sequential => "scnn",
+            AssociationMethod::Jcbb => "jcbb",
+            AssociationMethod::Tracking => "tracking",
+        }
+    }
+
+    /// Parses a command-line name.
+    pub fn by_name(name: &str) -> Option<Self> {
+        Self::ALL.into_iter().find(|m| m.name() == name)
+    }
+}
+
+/// One detection–landmark pair that passed the individual gate.
+#[derive(Clone, Debug)]
+pub struct Pair {
+    /// Landmark index in the map.
+    pub landmark: usize,
+    /// Mahalanobis distance² of the innovation (with the colour penalty).
+    pub d2: f64,
+    /// −log likelihood up to a constant: d² + ln det S.
+    pub cost: f64,
+    /// Innovation z − h(x, m).
+    pub innovation: Vector2<f64>,
+    /// Jacobian of h with respect to the pose.
+    pub h_pose: SMatrix<f64, 2, 3>,
+    /// Innovation covariance without the pose part: Hₘ Pₘ Hₘᵀ + R.
+    pub s_local: Matrix2<f64>,
+    /// Bhattacharyya distance between the detection and the landmark.
+    pub bhattacharyya: f64,
+}
+
+/// For each detection, its compatible pairs sorted by cost.
+pub type Candidates = Vec<Vec<Pair>>;
+
+/// Chooses a landmark (or none) for every detection. `tracked[i]` is the
+/// landmark the tracker id of detection i pointed at in earlier scans.
+pub fn associate(
+    method: AssociationMethod,
+    candidates: &Candidates,
+    pose_cov: &nalgebra::Matrix3<f64>,
+    tracked: &[Option<usize>],
+    joint_gate: impl Fn(usize) -> f64,
+) -> Vec<Option<usize>> {
+    match method {
+        AssociationMethod::MaximumLikelihood => {
+            greedy(candidates, &vec![None; candidates.len()], |p| p.cost)
+        }
+        AssociationMethod::Sequential => sequential(candidates),
+        AssociationMethod::Jcbb => jcbb(candidates, pose_cov, joint_gate),
+        AssociationMethod::Tracking => {
+            let mut fixed = vec![None; candidates.len()];
+            let mut taken = Vec::new();
+            for (i, pairs) in candidates.iter().enumerate() {
+                let Some(l) = tracked[i] else { continue };
+                if taken.contains(&l) {
+                    continue;
+                }
+                // Keep the tracker's answer when the landmark is individually compatible.
+                if pairs.iter().any(|p| p.landmark == l) {
+                    fixed[i] = Some(l);
+                    taken.push(l);
+                }
+            }
+            greedy(candidates, &fixed, |p| p.bhattacharyya)
+        }
+    }
+}
+
+/// Best pairs first, each detection and landmark used once; `fixed` pairs stay.
+fn greedy(
+    candidates: &Candidates,
+    fixed: &[Option<usize>],
+    key: impl Fn(&Pair) -> f64,
+) -> Vec<Option<usize>> {
+    let mut result = fixed.to_vec();
+    let mut pairs: Vec<(f64, usize, usize)> = candidates
+        .iter()
+        .enumerate()
+        .filter(|(i, _)| fixed[*i].is_none())
+        .flat_map(|(i, ps)| ps.iter().map(move |p| (i, p)))
+        .map(|(i, p)| (key(p), i, p.landmark))
+        .collect();
+    pairs.sort_by(|a, b| a.0.total_cmp(&b.0));
+    for (_, i, l) in pairs {
+        if result[i].is_none() && !result.contains(&Some(l)) {
+            result[i] = Some(l);
+        }
+    }
+    result
+}
+
+fn sequential(candidates: &Candidates) -> Vec<Option<usize>> {
+    let mut result: Vec<Option<usize>> = vec![None; candidates.len()];
+    for (i, pairs) in candidates.iter().enumerate() {
+        let best = pairs
+            .iter()
+            .filter(|p| !result.contains(&Some(p.landmark)))
+            .min_by(|a, b| a.d2.total_cmp(&b.d2));
+        result[i] = best.map(|p| p.landmark);
+    }
+    result
+}
+
+/// Branch and bound over the detections: the hypothesis with the most
+/// pairings whose stacked innovation passes the joint χ² test (ties: the
+/// smaller joint distance). The search stops after a node budget and keeps
+/// the best hypothesis found, so a dense scan cannot stall an update.
+fn jcbb(
+    candidates: &Candidates,
+    pose_cov: &nalgebra::Matrix3<f64>,
+    joint_gate: impl Fn(usize) -> f64,
+) -> Vec<Option<usize>> {
+    let n = candidates.len();
+    let mut search = Jcbb {
+        candidates,
+        pose_cov,
+        gate: &joint_gate,
+        best: vec![None; n],
+        best_pairs: 0,
+        best_d2: f64::INFINITY,
+        nodes: 0,
+    };
+    let mut current = vec![None; n];
+    search.recurse(0, &mut current, 0);
+    search.best
+}
+
+struct Jcbb<'a, G: Fn(usize) -> f64> {
+    candidates: &'a Candidates,
+    pose_cov: &'a nalgebra::Matrix3<f64>,
+    gate: &'a G,
+    best: Vec<Option<usize>>,
+    best_pairs: usize,
+    best_d2: f64,
+    nodes: usize,
+}
+
+const JCBB_NODE_BUDGET: usize = 200;
+
+impl<G: Fn(usize) -> f64> Jcbb<'_, G> {
+    fn recurse(&mut self, i: usize, current: &mut Vec<Option<usize>>, pairs: usize) {
+        self.nodes += 1;
+        let n = self.candidates.len();
+        if i == n {
+            let d2 = self.joint_d2(current);
+            if pairs > self.best_pairs || (pairs == self.best_pairs && d2 < self.best_d2) {
+                self.best = current.clone();
+                self.best_pairs = pairs;
+                self.best_d2 = d2;
+            }
+            return;
+        }
+        if self.nodes > JCBB_NODE_BUDGET {
+            return;
+        }
+        for k in 0..self.candidates[i].len() {
+            let l = self.candidates[i][k].landmark;
+            if current.contains(&Some(l)) {
+                continue;
+            }
+            current[i] = Some(l);
+            let d2 = self.joint_d2(current);
+            if d2 < (self.gate)(pairs + 1) {
+                self.recurse(i + 1, current, pairs + 1);
+            }
+            current[i] = None;
+        }
+        // Leaving detection i unpaired can only help if it can still beat the best.
+        if pairs + (n - i - 1) >= self.best_pairs.max(1) {
+            self.recurse(i + 1, current, pairs);
+        }
+    }
+
+    /// Joint Mahalanobis distance of the paired innovations; the pose
+    /// uncertainty correlates them.
+    fn joint_d2(&self, current: &[Option<usize>]) -> f64 {
+        let chosen: Vec<&Pair> = current
+            .iter()
+            .enumerate()
+            .filter_map(|(i, l)| {
+                l.and_then(|l| self.candidates[i].iter().find(|p| p.landmark == l))
+            })
+            .collect();
+        let m = chosen.len();
+        if m == 0 {
+            return 0.0;
+        }
+        let mut s = DMatrix::<f64>::zeros(2 * m, 2 * m);
+        let mut nu = DVector::<f64>::zeros(2 * m);
+        for (a, pa) in chosen.iter().enumerate() {
+            nu.fixed_rows_mut::<2>(2 * a).copy_from(&pa.innovation);
+            for (b, pb) in chosen.iter().enumerate() {
+                let mut block = pa.h_pose * self.pose_cov * pb.h_pose.transpose();
+                if a == b {
+                    block += pa.s_local;
+                }
+                s.fixed_view_mut::<2, 2>(2 * a, 2 * b).copy_from(&block);
+            }
+        }
+        match s.cholesky() {
+            Some(c) => nu.dot(&c.solve(&nu)),
+            None => f64::INFINITY,
+        }
+    }
+}

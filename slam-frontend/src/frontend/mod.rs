@@ -1,0 +1,1003 @@
+//! The graph-SLAM front end: odometry → pose chain, detections → landmarks
+//! (each refined by its own EKF), local pose optimisation per scan, loop
+//! closure → full optimisation on Cairn's solver, then localisation on the
+//! fixed map.
+
+mod align;
+pub mod association;
+
+use crate::color::Color;
+use crate::files::{Association, StampedPose};
+use crate::log::{Detection, Record};
+use crate::track::Cone;
+use association::{AssociationMethod, Candidates, Pair, associate};
+use cairn_core::{EdgeSE2, EdgeSE2XY, Graph, SE2};
+use cairn_solvers::{Optimizer, SolverConfig};
+use nalgebra::{Matrix2, Matrix3, SMatrix, Vector2};
+use std::collections::HashMap;
+use std::time::Instant;
+
+/// How odometry moves the pose between records.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum MotionModel {
+    /// Speed and the measured yaw rate.
+    Unicycle,
+    /// Speed and the steering angle: ω = v·tan(δ)/L (falls back to the yaw
+    /// rate when the log has no `steer`).
+    Bicycle {
+        /// Wheelbase L (m).
+        wheelbase: f64,
+    },
+}
+
+/// Settings of the front end.
+#[derive(Clone, Debug)]
+pub struct FrontEndConfig {
+    /// Motion model.
+    pub motion: MotionModel,
+    /// Data association method.
+    pub association: AssociationMethod,
+    /// Assumed detector noise: σ_r = `range_sigma` + `range_sigma_relative`·r.
+    pub range_sigma: f64,
+    /// See `range_sigma`.
+    pub range_sigma_relative: f64,
+    /// Assumed bearing noise σ (rad).
+    pub bearing_sigma: f64,
+    /// Assumed field of view (rad) and range (m), for counting misses.
+    pub fov: f64,
+    /// See `fov`.
+    pub max_range: f64,
+    /// Odometry noise: speed σ (m/s) plus a fraction of the speed, which
+    /// covers the scale bias.
+    pub speed_sigma: f64,
+    /// See `speed_sigma`.
+    pub speed_sigma_relative: f64,
+    /// Yaw-rate σ (rad/s), covering its bias.
+    pub yaw_rate_sigma: f64,
+    /// Individual-compatibility gate on the innovation's Mahalanobis χ² (2 dof).
+    pub gate: f64,
+    /// A detection farther than this χ² from every landmark starts a new one;
+    /// between `gate` and this it is ambiguous and rejected.
+    pub new_landmark_gate: f64,
+    /// Penalty added to χ² when the detection's colour contradicts the landmark's.
+    pub color_penalty: f64,
+    /// Sightings before a tentative landmark joins the map.
+    pub confirm_after: u32,
+    /// Landmarks that return after leaving the view, needed in one scan to
+    /// declare a loop closure.
+    pub loop_min_returned: usize,
+    /// After the first loop closure, stop mapping and localise on the map.
+    pub localise_after_loop: bool,
+}
+
+impl Default for FrontEndConfig {
+    fn default() -> Self {
+        Self {
+            motion: MotionModel::Unicycle,
+            association: AssociationMethod::Tracking,
+            range_sigma: 0.05,
+            range_sigma_relative: 0.01,
+            bearing_sigma: 0.5f64.to_radians(),
+            fov: std::f64::consts::PI,
+            max_range: 15.0,
+            speed_sigma: 0.1,
+            speed_sigma_relative: 0.03,
+            yaw_rate_sigma: 0.02,
+            gate: 9.21,
+            new_landmark_gate: 25.0,
+            color_penalty: 6.0,
+            confirm_after: 3,
+            loop_min_returned: 4,
+            localise_after_loop: true,
+        }
+    }
+}
+
+/// Mapping or localisation.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Mode {
+    /// Building the map.
+    Mapping,
+    /// Map fixed; only the pose is estimated.
+    Localising,
+}
+
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+enum View {
+    Visible,
+    Left,
+    Returned,
+}
+
+#[derive(Clone, Debug)]
+struct Landmark {
+    mean: Vector2<f64>,
+    cov: Matrix2<f64>,
+    votes: [u32; 5],
+    seen: u32,
+    missed: u32,
+    confirmed: bool,
+    removed: bool,
+    view: View,
+    last_seen: usize,
+    last_seen_distance: f64,
+    /// Distance driven and heading when the landmark was created.
+    created_distance: f64,
+    /// See `created_distance`.
+    created_heading: f64,
+}
+
+impl Landmark {
+    fn color(&self) -> Color {
+        Color::KNOWN
+            .into_iter()
+            .max_by_key(|c| self.votes[c.index()])
+            .filter(|c| self.votes[c.index()] > 0)
+            .unwrap_or(Color::Unknown)
+    }
+
+    /// Whether `color` contradicts a clear majority of the votes.
+    fn contradicts(&self, color: Color) -> bool {
+        if color == Color::Unknown {
+            return false;
+        }
+        let known: u32 = Color::KNOWN.iter().map(|c| self.votes[c.index()]).sum();
+        known > 0 && 2 * self.votes[color.index()] < known
+    }
+}
+
+struct Observation {
+    pose: usize,
+    landmark: usize,
+    z: Vector2<f64>,
+    information: Matrix2<f64>,
+}
+
+/// Why a full optimisation failed.
+#[derive(Debug, thiserror::Error)]
+pub enum OptimiseError {
+    /// The graph could not be built.
+    #[error(transparent)]
+    Graph(#[from] cairn_core::GraphError),
+    /// The solver failed.
+    #[error(transparent)]
+    Solve(#[from] cairn_solvers::SolveError),
+}
+
+/// Timings of a run.
+#[derive(Clone, Debug, Default)]
+pub struct Timing {
+    /// Seconds per scan update (association, local optimisation, EKFs).
+    pub updates: Vec<f64>,
+    /// Seconds per full optimisation after a loop closure.
+    pub loop_closures: Vec<f64>,
+}
+
+/// The graph-SLAM front end. Feed it records with [`GraphSlam::process`];
+/// read the map, trajectory and associations at any time.
+pub struct GraphSlam {
+    config: FrontEndConfig,
+    mode: Mode,
+    pose: SE2,
+    pose_cov: Matrix3<f64>,
+    /// Motion since the last keyframe and its covariance (in that keyframe's frame).
+    delta: SE2,
+    delta_cov: Matrix3<f64>,
+    odom: Option<(f64, f64, f64)>,
+    odom_time: Option<f64>,
+    distance: f64,
+    poses: Vec<StampedPose>,
+    odometry: Vec<(SE2, Matrix3<f64>)>,
+    observations: Vec<Observation>,
+    landmarks: Vec<Landmark>,
+    /// Merged landmark → the one it was merged into.
+    alias: Vec<usize>,
+    tracker: HashMap<u64, usize>,
+    detections: Vec<(usize, usize, Option<usize>)>,
+    scans: usize,
+    started: bool,
+    /// False until the first scan has been placed on a given map.
+    aligned: bool,
+    loop_closures: usize,
+    timing: Timing,
+}
+
+impl GraphSlam {
+    /// A front end that starts mapping at the origin (or the log's `start`).
+    pub fn new(config: FrontEndConfig) -> Self {
+        Self {
+            config,
+            mode: Mode::Mapping,
+            pose: SE2::identity(),
+            pose_cov: Matrix3::identity() * 1e-9,
+            delta: SE2::identity(),
+            delta_cov: Matrix3::zeros(),
+            odom: None,
+            odom_time: None,
+            distance: 0.0,
+            poses: Vec::new(),
+            odometry: Vec::new(),
+            observations: Vec::new(),
+            landmarks: Vec::new(),
+            alias: Vec::new(),
+            tracker: HashMap::new(),
+            detections: Vec::new(),
+            scans: 0,
+            started: false,
+            aligned: true,
+            loop_closures: 0,
+            timing: Timing::default(),
+        }
+    }
+
+    /// A front end that localises on a given map from the first scan; the
+    /// initial pose is found by aligning the first scans to the map.
+    pub fn with_map(config: FrontEndConfig, map: &[Cone]) -> Self {
+        let mut slam = GraphSlam::new(config);
+        slam.mode = Mode::Localising;
+        slam.aligned = false;
+        for c in map {
+            let mut votes = [0; 5];
+            votes[c.color.index()] = 100;
+            let cov = if c.covariance.determinant() > 0.0 {
+                c.covariance
+            } else {
+                Matrix2::identity() * 1e-4
+            };
+            slam.landmarks.push(Landmark {
+                mean: c.position,
+                cov,
+                votes,
+                seen: 100,
+                missed: 0,
+                confirmed: true,
+                removed: false,
+                view: View::Visible,
+                last_seen: 0,
+                last_seen_distance: 0.0,
+                created_distance: 0.0,
+                created_heading: 0.0,
+            });
+            slam.alias.push(slam.alias.len());
+        }
+        slam
+    }
+
+    /// Mapping or localising.
+    pub fn mode(&self) -> Mode {
+        self.mode
+    }
+
+    /// Loop closures detected so far.
+    pub fn loop_closures(&self) -> usize {
+        self.loop_closures
+    }
+
+    /// Update and optimisation times.
+    pub fn timing(&self) -> &Timing {
+        &self.timing
+    }
+
+    /// The current pose estimate.
+    pub fn pose(&self) -> SE2 {
+        self.pose
+    }
+
+    /// Processes one log record.
+    pub fn process(&mut self, record: &Record) {
+        match record {
+            Record::Start { pose, .. } => {
+                if !self.started {
+                    self.pose = *pose;
+                }
+            }
+            Record::Odom {
+                t,
+                v,
+                yaw_rate,
+                steer,
+                ..
+            } => {
+                self.advance(*t);
+                let omega = match (self.config.motion, steer) {
+                    (MotionModel::Bicycle { wheelbase }, Some(s)) => v * s.tan() / wheelbase,
+                    _ => *yaw_rate,
+                };
+                self.odom = Some((*v, omega, *t));
+                self.odom_time = Some(*t);
+            }
+            Record::Cones { t, cones } => {
+                self.advance(*t);
+                let start = Instant::now();
+                self.update(*t, cones);
+                self.timing.updates.push(start.elapsed().as_secs_f64());
+            }
+            Record::Points { .. } => {}
+        }
+    }
+
+    /// Integrates the held odometry up to time `t`.
+    fn advance(&mut self, t: f64) {
+        let (Some((v, omega, _)), Some(t0)) = (self.odom, self.odom_time) else {
+            return;
+        };
+        let dt = t - t0;
+        if dt <= 0.0 {
+            return;
+        }
+        let step = crate::sim::integrate(&SE2::identity(), v, omega, dt);
+        // Covariance of delta ∘ step with respect to delta and to (v, ω).
+        let r = self.delta.rotation();
+        let dr = Matrix2::new(0.0, -1.0, 1.0, 0.0) * r;
+        let mut f = Matrix3::identity();
+        f.fixed_view_mut::<2, 1>(0, 2).copy_from(&(dr * step.t));
+        let mut g = SMatrix::<f64, 3, 2>::zeros();
+        g.fixed_view_mut::<2, 1>(0, 0)
+            .copy_from(&(r * Vector2::new(dt, 0.0)));
+        g[(2, 1)] = dt;
+        let sv = self.config.speed_sigma + self.config.speed_sigma_relative * v.abs();
+        let q = Matrix2::new(sv * sv, 0.0, 0.0, self.config.yaw_rate_sigma.powi(2));
+        // The odometry errors are mostly bias, so they add up over a scan
+        // interval rather than average out; scale as for 10 correlated steps.
+        self.delta_cov = f * self.delta_cov * f.transpose() + g * q * g.transpose() * 10.0;
+        self.delta = self.delta.compose(&step);
+        self.distance += (v * dt).abs();
+        self.odom_time = Some(t);
+    }
+
+    /// Measurement covariance of a detection in the vehicle frame.
+    fn detection_cov(&self, d: &Detection) -> Matrix2<f64> {
+        if let Some(c) = d.covariance {
+            return c;
+        }
+        let r = d.position.norm();
+        let b = d.position.y.atan2(d.position.x);
+        let sr = self.config.range_sigma + self.config.range_sigma_relative * r;
+        let j = Matrix2::new(b.cos(), -r * b.sin(), b.sin(), r * b.cos());
+        j * Matrix2::new(sr * sr, 0.0, 0.0, self.config.bearing_sigma.powi(2)) * j.transpose()
+    }
+
+    fn update(&mut self, t: f64, cones: &[Detection]) {
+        let scan = self.scans;
+        self.scans += 1;
+        if !self.aligned && !self.align_to_map(cones) {
+            // Not placed on the map yet: these detections stay unassociated.
+            self.detections
+                .extend((0..cones.len()).map(|i| (scan, i, None)));
+            self.pose = self.pose.compose(&self.delta);
+            self.delta = SE2::identity();
+            self.delta_cov = Matrix3::zeros();
+            return;
+        }
+        // Predict the pose from the last keyframe.
+        let previous = self.pose;
+        let pred = previous.compose(&self.delta);
+        let mut j1 = Matrix3::identity();
+        let dr = Matrix2::new(0.0, -1.0, 1.0, 0.0) * previous.rotation();
+        j1.fixed_view_mut::<2, 1>(0, 2)
+            .copy_from(&(dr * self.delta.t));
+        let mut j2 = Matrix3::identity();
+        j2.fixed_view_mut::<2, 2>(0, 0)
+            .copy_from(&previous.rotation());
+        let pred_cov = j1 * self.pose_cov * j1.transpose() + j2 * self.delta_cov * j2.transpose();
+
+        let covs: Vec<Matrix2<f64>> = cones.iter().map(|d| self.detection_cov(d)).collect();
+        let (candidates, nearest) = self.candidates(&pred, &pred_cov, cones, &covs);
+        let tracked: Vec<Option<usize>> = cones
+            .iter()
+            .map(|d| {
+                d.id.and_then(|id| self.tracker.get(&id))
+                    .map(|&l| self.resolve(l))
+            })
+            .collect();
+        let joint_gate = |pairs: usize| chi2_99(2 * pairs);
+        let assigned = associate(
+            self.config.association,
+            &candidates,
+            &pred_cov,
+            &tracked,
+            joint_gate,
+        );
+
+        // Local pose optimisation: odometry prior plus the matched landmarks.
+        let (pose, pose_cov) = self.localise(&pred, &pred_cov, cones, &covs, &assigned);
+        self.pose = pose;
+        self.pose_cov = pose_cov;
+        let keyframe = self.poses.len();
+        self.poses.push(StampedPose { t, pose });
+        if keyframe > 0 {
+            let info = nearest_information(&self.delta_cov);
+            self.odometry.push((self.delta, info));
+        }
+        self.delta = SE2::identity();
+        self.delta_cov = Matrix3::zeros();
+
+        let mut returned = 0;
+        let mut associated = vec![false; self.landmarks.len()];
+        for (i, d) in cones.iter().enumerate() {
+            let mut landmark = assigned[i];
+            if landmark.is_none()
+                && self.mode == Mode::Mapping
+                && nearest[i] > self.config.new_landmark_gate
+                && self.far_from_all(&pose, d)
+            {
+                landmark = Some(self.new_landmark(&pose, &pose_cov, d, &covs[i], scan));
+                associated.push(true);
+            }
+            self.detections.push((scan, i, landmark));
+            let Some(l) = landmark else { continue };
+            if let Some(id) = d.id {
+                self.tracker.insert(id, l);
+            }
+            associated[l] = true;
+            if self.mode == Mode::Mapping {
+                self.observations.push(Observation {
+                    pose: keyframe,
+                    landmark: l,
+                    z: d.position,
+                    information: nearest_information2(&covs[i]),
+                });
+                self.refine(l, &pose, &pose_cov, d, &covs[i]);
+            }
+            let start_area = self.is_start_area(l);
+            let lm = &mut self.landmarks[l];
+            if lm.view == View::Left && start_area {
+                lm.view = View::Returned;
+                returned += 1;
+            } else if lm.view == View::Returned {
+                returned += 1;
+            } else if lm.view == View::Left {
+                lm.view = View::Visible;
+            }
+            lm.last_seen = scan;
+            lm.last_seen_distance = self.distance;
+        }
+        self.count_misses(&pose, &associated, scan);
+        if self.mode != Mode::Mapping {
+            return;
+        }
+        if returned >= self.config.loop_min_returned || self.recognise_place(cones, &covs, keyframe)
+        {
+            self.close_loop();
+        }
+    }
+
+    /// A loop closes when the car comes back to where it started: landmarks
+    /// mapped in the first [`START_AREA`] metres, seen again after driving
+    /// at least [`MIN_LOOP`] metres, heading the same way. Adjacent parts
+    /// of a track driven the other way then cannot fake a closure.
+    fn is_start_area(&self, l: usize) -> bool {
+        let lm = &self.landmarks[l];
+        let turned = cairn_core::se2::normalize_angle(self.pose.theta - lm.created_heading);
+        lm.created_distance < START_AREA
+            && self.distance > lm.created_distance + MIN_LOOP
+            && turned.abs() < 0.8
+    }
+
+    /// Drift can put returning landmarks outside the association gates, so
+    /// the place is also recognised geometrically: the scan is aligned to
+    /// the landmarks that left the view long ago, near the current pose.
+    /// When enough detections agree, they are tied to those landmarks,
+    /// which closes the loop in the graph.
+    fn recognise_place(
+        &mut self,
+        cones: &[Detection],
+        covs: &[Matrix2<f64>],
+        keyframe: usize,
+    ) -> bool {
+        let reach = self.config.max_range + 5.0;
+        let old: Vec<usize> = (0..self.landmarks.len())
+            .filter(|&l| {
+                let lm = &self.landmarks[l];
+                self.alias[l] == l
+                    && lm.confirmed
+                    && !lm.removed
+                    && lm.view == View::Left
+                    && self.is_start_area(l)
+                    && (lm.mean - self.pose.t).norm() < reach
+            })
+            .collect();
+        if old.len() < self.config.loop_min_returned {
+            return false;
+        }
+        let map: Vec<(Vector2<f64>, Color)> = old
+            .iter()
+            .map(|&l| (self.landmarks[l].mean, self.landmarks[l].color()))
+            .collect();
+        let Some((aligned, inliers)) = align::align(&map, cones) else {
+            return false;
+        };
+        let shift = self.pose.between(&aligned);
+        if inliers < self.config.loop_min_returned.max(cones.len() / 2)
+            || shift.t.norm() > 8.0
+            || shift.theta.abs() > 0.4
+        {
+            return false;
+        }
+        let first = self.detections.len() - cones.len();
+        for (i, d) in cones.iter().enumerate() {
+            let w = aligned.transform_point(&d.position);
+            let nearest = old
+                .iter()
+                .map(|&l| (l, (self.landmarks[l].mean - w).norm()))
+                .min_by(|a, b| a.1.total_cmp(&b.1));
+            if let Some((l, dist)) = nearest
+                && dist < 0.6
+            {
+                self.observations.push(Observation {
+                    pose: keyframe,
+                    landmark: l,
+                    z: d.position,
+                    information: nearest_information2(&covs[i]),
+                });
+                self.detections[first + i].2 = Some(l);
+                self.landmarks[l].view = View::Returned;
+            }
+        }
+        true
+    }
+
+    /// Places the car on the given map: the current pose if most detections
+    /// fall on map cones, else the best two-point alignment. Needs three
+    /// agreeing detections.
+    fn align_to_map(&mut self, cones: &[Detection]) -> bool {
+        let map: Vec<(Vector2<f64>, Color)> =
+            self.landmarks.iter().map(|l| (l.mean, l.color())).collect();
+        let here = self.pose.compose(&self.delta);
+        let agree = |pose: &SE2| {
+            cones
+                .iter()
+                .filter(|d| {
+                    let w = pose.transform_point(&d.position);
+                    map.iter().any(|(m, _)| (m - w).norm() < 0.5)
+                })
+                .count()
+        };
+        let needed = 3.max(cones.len() / 2);
+        let found = if agree(&here) >= needed {
+            Some(here)
+        } else {
+            align::align(&map, cones)
+                .filter(|(_, n)| *n >= needed)
+                .map(|(p, _)| p)
+        };
+        let Some(pose) = found else { return false };
+        self.pose = pose;
+        self.pose_cov = Matrix3::from_diagonal(&nalgebra::Vector3::new(0.25, 0.25, 0.05));
+        self.delta = SE2::identity();
+        self.delta_cov = Matrix3::zeros();
+        self.aligned = true;
+        true
+    }
+
+    /// Individually compatible landmarks for every detection, best first,
+    /// and the χ² of the nearest landmark even when it fails the gate.
+    fn candidates(
+        &self,
+        pose: &SE2,
+        pose_cov: &Matrix3<f64>,
+        cones: &[Detection],
+        covs: &[Matrix2<f64>],
+    ) -> (Candidates, Vec<f64>) {
+        let rt = pose.rotation().transpose();
+        let drt = Matrix2::new(0.0, 1.0, -1.0, 0.0) * rt;
+        let reach = self.config.max_range + 5.0;
+        let nearby: Vec<usize> = (0..self.landmarks.len())
+            .filter(|&l| {
+                let lm = &self.landmarks[l];
+                !lm.removed
+                    && self.alias[l] == l
+                    && (self.mode == Mode::Mapping || lm.confirmed)
+                    && (lm.mean - pose.t).norm() < reach
+            })
+            .collect();
+        cones
+            .iter()
+            .zip(covs)
+            .map(|(d, r)| {
+                let mut pairs: Vec<Pair> = nearby
+                    .iter()
+                    .filter_map(|&l| {
+                        let lm = &self.landmarks[l];
+                        let diff = lm.mean - pose.t;
+                        let innovation = d.position - rt * diff;
+                        if innovation.norm() > 4.0 {
+                            return None;
+                        }
+                        let mut h_pose = SMatrix::<f64, 2, 3>::zeros();
+                        h_pose.fixed_view_mut::<2, 2>(0, 0).copy_from(&(-rt));
+                        h_pose.fixed_view_mut::<2, 1>(0, 2).copy_from(&(drt * diff));
+                        let s_local = rt * lm.cov * rt.transpose() + r;
+                        let s = h_pose * pose_cov * h_pose.transpose() + s_local;
+                        let inv = s.try_inverse()?;
+                        let mut d2 = innovation.dot(&(inv * innovation));
+                        if lm.contradicts(d.color) {
+                            d2 += self.config.color_penalty;
+                        }
+                        if d2 > self.config.new_landmark_gate {
+                            return None;
+                        }
+                        let det = s.determinant().max(1e-300);
+                        // Bhattacharyya distance between N(z, R') and N(h, Pₘ'),
+                        // with the pose uncertainty shared between them.
+                        let sigma = 0.5 * s;
+                        let b1 = 0.125 * innovation.dot(&(sigma.try_inverse()? * innovation));
+                        let s1 = r + h_pose * pose_cov * h_pose.transpose();
+                        let s2 = rt * lm.cov * rt.transpose();
+                        let b2 = 0.5
+                            * (sigma.determinant()
+                                / (s1.determinant() * s2.determinant()).max(1e-300).sqrt())
+                            .ln();
+                        Some(Pair {
+                            landmark: l,
+                            d2,
+                            cost: d2 + det.ln(),
+                            innovation,
+                            h_pose,
+                            s_local,
+                            bhattacharyya: b1
+                                + b2
+                                + if lm.contradicts(d.color) { 1.0 } else { 0.0 },
+                        })
+                    })
+                    .collect();
+                pairs.sort_by(|a, b| a.d2.total_cmp(&b.d2));
+                let nearest = pairs.first().map_or(f64::INFINITY, |p| p.d2);
+                pairs.retain(|p| p.d2 <= self.config.gate);
+                (pairs, nearest)
+            })
+            .collect()
+    }
+
+    /// No live landmark within 0.8 m of the detection: a new cone, not a poorly matched old one.
+    fn far_from_all(&self, pose: &SE2, d: &Detection) -> bool {
+        let world = pose.transform_point(&d.position);
+        self.landmarks
+            .iter()
+            .enumerate()
+            .all(|(l, lm)| lm.removed || self.alias[l] != l || (lm.mean - world).norm() > 0.8)
+    }
+
+    fn resolve(&self, mut l: usize) -> usize {
+        while self.alias[l] != l {
+            l = self.alias[l];
+        }
+        l
+    }
+
+    /// Gauss-Newton on the pose alone, landmarks held at their EKF means.
+    fn localise(
+        &self,
+        pred: &SE2,
+        pred_cov: &Matrix3<f64>,
+        cones: &[Detection],
+        covs: &[Matrix2<f64>],
+        assigned: &[Option<usize>],
+    ) -> (SE2, Matrix3<f64>) {
+        let prior_info = nearest_information(pred_cov);
+        let mut x = pred.to_vector();
+        let mut h = prior_info;
+        for _ in 0..3 {
+            let pose = SE2::from_vector(&x);
+            let rt = pose.rotation().transpose();
+            let drt = Matrix2::new(0.0, 1.0, -1.0, 0.0) * rt;
+            let mut dx = x - pred.to_vector();
+            dx[2] = cairn_core::se2::normalize_angle(dx[2]);
+            h = prior_info;
+            let mut g = -(prior_info * dx);
+            for (i, l) in assigned.iter().enumerate() {
+                let Some(l) = *l else { continue };
+                let lm = &self.landmarks[l];
+                if lm.seen < 2 {
+                    continue;
+                }
+                let diff = lm.mean - pose.t;
+                let e = cones[i].position - rt * diff;
+                let mut j = SMatrix::<f64, 2, 3>::zeros();
+                j.fixed_view_mut::<2, 2>(0, 0).copy_from(&(-rt));
+                j.fixed_view_mut::<2, 1>(0, 2).copy_from(&(drt * diff));
+                let s = rt * lm.cov * rt.transpose() + covs[i];
+                let w = nearest_information2(&s);
+                h += j.transpose() * w * j;
+                g += j.transpose() * w * e;
+            }
+            let Some(step) = h.cholesky().map(|c| c.solve(&g)) else {
+                break;
+            };
+            x += step;
+            if step.norm() < 1e-9 {
+                break;
+            }
+        }
+        let cov = h.try_inverse().unwrap_or(*pred_cov);
+        (SE2::from_vector(&x), 0.5 * (cov + cov.transpose()))
+    }
+
+    fn world_cov(
+        &self,
+        pose: &SE2,
+        pose_cov: &Matrix3<f64>,
+        d: &Detection,
+        r: &Matrix2<f64>,
+    ) -> Matrix2<f64> {
+        let rot = pose.rotation();
+        let dr = Matrix2::new(0.0, -1.0, 1.0, 0.0) * rot;
+        let mut j = SMatrix::<f64, 2, 3>::zeros();
+        j.fixed_view_mut::<2, 2>(0, 0)
+            .copy_from(&Matrix2::identity());
+        j.fixed_view_mut::<2, 1>(0, 2).copy_from(&(dr * d.position));
+        rot * r * rot.transpose() + j * pose_cov * j.transpose()
+    }
+
+    fn new_landmark(
+        &mut self,
+        pose: &SE2,
+        pose_cov: &Matrix3<f64>,
+        d: &Detection,
+        r: &Matrix2<f64>,
+        scan: usize,
+    ) -> usize {
+        let mut votes = [0; 5];
+        votes[d.color.index()] += 1;
+        self.landmarks.push(Landmark {
+            mean: pose.transform_point(&d.position),
+            cov: self.world_cov(pose, pose_cov, d, r),
+            votes,
+            seen: 0,
+            missed: 0,
+            confirmed: false,
+            removed: false,
+            view: View::Visible,
+            last_seen: scan,
+            last_seen_distance: self.distance,
+            created_distance: self.distance,
+            created_heading: pose.theta,
+        });
+        self.alias.push(self.alias.len());
+        self.landmarks.len() - 1
+    }
+
+    /// The landmark's own EKF: a direct, world-frame observation of a static point.
+    fn refine(
+        &mut self,
+        l: usize,
+        pose: &SE2,
+        pose_cov: &Matrix3<f64>,
+        d: &Detection,
+        r: &Matrix2<f64>,
+    ) {
+        let z = pose.transform_point(&d.position);
+        let rw = self.world_cov(pose, pose_cov, d, r);
+        let lm = &mut self.landmarks[l];
+        if lm.seen > 0
+            && let Some(inv) = (lm.cov + rw).try_inverse()
+        {
+            let k = lm.cov * inv;
+            lm.mean += k * (z - lm.mean);
+            lm.cov = (Matrix2::identity() - k) * lm.cov;
+            lm.cov = 0.5 * (lm.cov + lm.cov.transpose());
+        }
+        lm.votes[d.color.index()] += 1;
+        lm.seen += 1;
+        if lm.seen >= self.config.confirm_after {
+            lm.confirmed = true;
+        }
+    }
+
+    /// Counts misses of landmarks well inside the field of view, removes
+    /// those missed more often than seen, and tracks which left the view.
+    fn count_misses(&mut self, pose: &SE2, associated: &[bool], scan: usize) {
+        let inverse = pose.inverse();
+        let (fov, range) = (self.config.fov / 2.0 - 0.1, self.config.max_range - 1.0);
+        for (l, lm) in self.landmarks.iter_mut().enumerate() {
+            if lm.removed || self.alias[l] != l {
+                continue;
+            }
+            let local = inverse.transform_point(&lm.mean);
+            let visible =
+                local.norm() < range && local.norm() > 1.0 && local.y.atan2(local.x).abs() < fov;
+            if visible && !associated.get(l).copied().unwrap_or(false) && self.mode == Mode::Mapping
+            {
+                lm.missed += 1;
+                if lm.missed > lm.seen + 1 && !(lm.confirmed && lm.seen >= 10) {
+                    lm.removed = true;
+                }
+            }
+            if !visible && scan > lm.last_seen + 10 && self.distance > lm.last_seen_distance + 20.0
+            {
+                lm.view = View::Left;
+            }
+        }
+    }
+
+    /// Optimises every pose and confirmed landmark, merges duplicates, and
+    /// switches to localisation if configured.
+    fn close_loop(&mut self) {
+        let start = Instant::now();
+        self.loop_closures += 1;
+        if let Err(e) = self.optimise() {
+            eprintln!("loop closure optimisation failed: {e}");
+        }
+        self.timing
+            .loop_closures
+            .push(start.elapsed().as_secs_f64());
+        for lm in &mut self.landmarks {
+            if lm.view == View::Returned {
+                lm.view = View::Visible;
+            }
+        }
+        if self.config.localise_after_loop {
+            self.mode = Mode::Localising;
+        }
+    }
+
+    /// Full optimisation of the pose/landmark graph on Cairn's solver.
+    pub fn optimise(&mut self) -> Result<(), OptimiseError> {
+        let n = self.poses.len();
+        if n == 0 {
+            return Ok(());
+        }
+        let mut graph = Graph::new();
+        let mut add = || -> Result<Vec<Option<i64>>, cairn_core::GraphError> {
+            for (k, p) in self.poses.iter().enumerate() {
+                graph.add_vertex(k as i64, p.pose)?;
+            }
+            graph.set_fixed(0, true)?;
+            for (k, (delta, info)) in self.odometry.iter().enumerate() {
+                graph.add_edge(k as i64, k as i64 + 1, EdgeSE2::new(*delta), *info)?;
+            }
+            let mut vertex = vec![None; self.landmarks.len()];
+            for (l, lm) in self.landmarks.iter().enumerate() {
+                if lm.confirmed && !lm.removed && self.alias[l] == l {
+                    vertex[l] = Some((n + l) as i64);
+                    graph.add_vertex((n + l) as i64, lm.mean)?;
+                }
+            }
+            for o in &self.observations {
+                let l = self.resolve(o.landmark);
+                if let Some(v) = vertex[l] {
+                    graph.add_edge(o.pose as i64, v, EdgeSE2XY::new(o.z), o.information)?;
+                }
+            }
+            Ok(vertex)
+        };
+        let vertex = add()?;
+        let config = SolverConfig {
+            max_iterations: 10,
+            ..SolverConfig::default()
+        };
+        let mut optimizer = Optimizer::new(&graph, config)?;
+        optimizer.optimize(&mut graph)?;
+        for (k, p) in self.poses.iter_mut().enumerate() {
+            p.pose = graph.value(k as i64)?;
+        }
+        for (l, v) in vertex.iter().enumerate() {
+            if let Some(v) = v {
+                self.landmarks[l].mean = graph.value(*v)?;
+            }
+        }
+        if let Some(last) = self.poses.last() {
+            self.pose = last.pose;
+        }
+        self.merge_duplicates();
+        Ok(())
+    }
+
+    /// Landmarks of one colour closer than [`MERGE_RADIUS`] are one cone seen twice
+    /// (typically once per lap before the loop closed).
+    fn merge_duplicates(&mut self) {
+        let live: Vec<usize> = (0..self.landmarks.len())
+            .filter(|&l| {
+                self.alias[l] == l && !self.landmarks[l].removed && self.landmarks[l].confirmed
+            })
+            .collect();
+        for (a_pos, &a) in live.iter().enumerate() {
+            if self.alias[a] != a {
+                continue;
+            }
+            for &b in &live[a_pos + 1..] {
+                if self.alias[b] != b {
+                    continue;
+                }
+                let (la, lb) = (&self.landmarks[a], &self.landmarks[b]);
+                if (la.mean - lb.mean).norm() < MERGE_RADIUS
+                    && (la.color() == lb.color()
+                        || la.color() == Color::Unknown
+                        || lb.color() == Color::Unknown)
+                {
+                    let (keep, drop) = if la.seen >= lb.seen { (a, b) } else { (b, a) };
+                    let dropped = self.landmarks[drop].clone();
+                    let kept = &mut self.landmarks[keep];
+                    for k in 0..5 {
+                        kept.votes[k] += dropped.votes[k];
+                    }
+                    kept.seen += dropped.seen;
+                    self.alias[drop] = keep;
+                    if drop == a {
+                        break;
+                    }
+                }
+            }
+        }
+    }
+
+    /// The landmarks of the map, in output order, with their internal indices.
+    fn map_rows(&self) -> Vec<usize> {
+        (0..self.landmarks.len())
+            .filter(|&l| {
+                self.alias[l] == l && !self.landmarks[l].removed && self.landmarks[l].confirmed
+            })
+            .collect()
+    }
+
+    /// The map: confirmed landmarks, with their EKF covariances.
+    pub fn map(&self) -> Vec<Cone> {
+        self.map_rows()
+            .into_iter()
+            .map(|l| {
+                let lm = &self.landmarks[l];
+                Cone {
+                    position: lm.mean,
+                    color: lm.color(),
+                    covariance: lm.cov,
+                }
+            })
+            .collect()
+    }
+
+    /// The pose of every scan.
+    pub fn trajectory(&self) -> &[StampedPose] {
+        &self.poses
+    }
+
+    /// For every detection, its row in [`GraphSlam::map`] (or none).
+    pub fn associations(&self) -> Vec<Association> {
+        let mut row = vec![None; self.landmarks.len()];
+        for (k, l) in self.map_rows().into_iter().enumerate() {
+            row[l] = Some(k);
+        }
+        self.detections
+            .iter()
+            .map(|&(scan, det, l)| Association {
+                scan,
+                det,
+                landmark: l.and_then(|l| row[self.resolve(l)]),
+            })
+            .collect()
+    }
+}
+
+/// Landmarks created within this distance from the start mark the start area (m).
+const START_AREA: f64 = 30.0;
+/// The shortest loop (m).
+const MIN_LOOP: f64 = 60.0;
+
+/// Landmarks of compatible colours closer than this after a loop closure are one cone (m).
+const MERGE_RADIUS: f64 = 0.7;
+
+/// χ² quantile at 99% for `dof` degrees of freedom (Wilson–Hilferty).
+pub fn chi2_99(dof: usize) -> f64 {
+    if dof == 0 {
+        return 0.0;
+    }
+    let k = dof as f64;
+    let z = 2.326_347_874;
+    let a = 2.0 / (9.0 * k);
+    k * (1.0 - a + z * a.sqrt()).powi(3)
+}
+
+fn nearest_information(cov: &Matrix3<f64>) -> Matrix3<f64> {
+    let reg = cov + Matrix3::identity() * 1e-9;
+    let inv = reg
+        .try_inverse()
+        .unwrap_or_else(|| Matrix3::identity() * 1e9);
+    0.5 * (inv + inv.transpose())
+}
+
+fn nearest_information2(cov: &Matrix2<f64>) -> Matrix2<f64> {
+    let reg = cov + Matrix2::identity() * 1e-9;
+    let inv = reg
+        .try_inverse()
+        .unwrap_or_else(|| Matrix2::identity() * 1e9);
+    0.5 * (inv + inv.transpose())
+}

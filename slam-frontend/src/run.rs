@@ -1,0 +1,36 @@
+//! One simulated run end to end, as the report and the tests use it.
+
+use crate::eval::{Report, evaluate, latency_ms};
+use crate::frontend::{FrontEndConfig, GraphSlam};
+use crate::sim::Simulation;
+
+/// Feeds a simulated log to a new front end and scores the result.
+pub fn run_and_score(sim: &Simulation, config: FrontEndConfig) -> (GraphSlam, Report) {
+    let mut slam = GraphSlam::new(config);
+    for record in &sim.log {
+        slam.process(record);
+    }
+    let report = score(sim, &slam);
+    (slam, report)
+}
+
+/// Scores a front end's current output against the simulation's truth.
+pub fn score(sim: &Simulation, slam: &GraphSlam) -> Report {
+    let mut report = evaluate(
+        &sim.truth_map,
+        &slam.map(),
+        &sim.truth,
+        slam.trajectory(),
+        &sim.truth_associations,
+        &slam.associations(),
+    );
+    report.latency_ms = latency_ms(&slam.timing().updates);
+    report.loop_closure_ms = slam
+        .timing()
+        .loop_closures
+        .iter()
+        .copied()
+        .reduce(f64::max)
+        .map(|s| s * 1e3);
+    report
+}

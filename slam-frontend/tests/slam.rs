@@ -1,0 +1,185 @@
+//! The simulator, data association, evaluation and the whole pipeline.
+
+use cairn_slam::eval::{aligned_rms, association_accuracy, rigid_alignment};
+use cairn_slam::files::Association;
+use cairn_slam::frontend::association::AssociationMethod;
+use cairn_slam::frontend::{FrontEndConfig, GraphSlam, Mode};
+use cairn_slam::log::Record;
+use cairn_slam::run::run_and_score;
+use cairn_slam::sim::{Preset, SimConfig, simulate};
+use cairn_slam::trackgen::{TrackRules, random_track};
+use nalgebra::{Rotation2, Vector2};
+
+#[test]
+fn simulation_is_seeded_and_drives_the_laps() {
+    let (track, course) = random_track(1, &TrackRules::default());
+    let config = SimConfig {
+        laps: 1.0,
+        ..SimConfig::default()
+    };
+    let a = simulate(&track, &course, &config);
+    let b = simulate(&track, &course, &config);
+    assert_eq!(a.log, b.log);
+    let c = simulate(
+        &track,
+        &course,
+        &SimConfig {
+            seed: 2,
+            ..config.clone()
+        },
+    );
+    assert_ne!(a.log, c.log);
+    // One lap at 5 m/s takes length / 5 seconds.
+    let duration = a.truth.last().unwrap().t;
+    assert!((duration - course.length() / 5.0).abs() < 1.0, "{duration}");
+    // The car ends where it started, and every true label names a cone.
+    assert!(a.truth.last().unwrap().pose.t.norm() < 2.0);
+    assert!(
+        a.truth_associations
+            .iter()
+            .all(|x| x.landmark.is_none_or(|l| l < track.cones.len()))
+    );
+    let false_positives = a
+        .truth_associations
+        .iter()
+        .filter(|x| x.landmark.is_none())
+        .count();
+    let scans = a
+        .log
+        .iter()
+        .filter(|r| matches!(r, Record::Cones { .. }))
+        .count();
+    let rate = false_positives as f64 / scans as f64;
+    assert!(
+        (0.15..0.5).contains(&rate),
+        "false positives per scan {rate}"
+    );
+}
+
+#[test]
+fn rigid_alignment_recovers_a_transform_and_refuses_reflections() {
+    let a: Vec<Vector2<f64>> = (0..10)
+        .map(|i| Vector2::new(i as f64, (i * i) as f64 * 0.1))
+        .collect();
+    let r = Rotation2::new(0.7);
+    let t = Vector2::new(3.0, -1.0);
+    let b: Vec<_> = a.iter().map(|p| r * p + t).collect();
+    let (rr, tt) = rigid_alignment(&a, &b);
+    assert!((rr - r.matrix()).norm() < 1e-12 && (tt - t).norm() < 1e-12);
+    assert!(aligned_rms(&a, &b) < 1e-12);
+    // A mirror image cannot be matched by a rotation.
+    let mirrored: Vec<_> = a.iter().map(|p| Vector2::new(p.x, -p.y)).collect();
+    let (rm, _) = rigid_alignment(&a, &mirrored);
+    assert!((rm.determinant() - 1.0).abs() < 1e-12);
+}
+
+#[test]
+fn association_accuracy_counts_landmarks_by_majority() {
+    let truth = [Some(7), Some(7), Some(7), None, Some(8)];
+    let est = [Some(0), Some(0), Some(1), None, Some(0)];
+    let t: Vec<_> = truth
+        .iter()
+        .enumerate()
+        .map(|(i, &l)| Association {
+            scan: 0,
+            det: i,
+            landmark: l,
+        })
+        .collect();
+    let e: Vec<_> = est
+        .iter()
+        .enumerate()
+        .map(|(i, &l)| Association {
+            scan: 0,
+            det: i,
+            landmark: l,
+        })
+        .collect();
+    // Landmark 0 stands for cone 7 (2 of 3), landmark 1 for cone 7: 4 of 5 right.
+    let (acc, n) = association_accuracy(&t, &e);
+    assert_eq!(n, 5);
+    assert!((acc - 0.8).abs() < 1e-12);
+}
+
+fn score(method: AssociationMethod, seed: u64) -> (GraphSlam, cairn_slam::eval::Report) {
+    let (track, course) = random_track(1, &TrackRules::default());
+    let sim = simulate(
+        &track,
+        &course,
+        &SimConfig {
+            seed,
+            ..SimConfig::default()
+        },
+    );
+    let config = FrontEndConfig {
+        association: method,
+        ..FrontEndConfig::default()
+    };
+    run_and_score(&sim, config)
+}
+
+#[test]
+fn every_association_method_maps_a_random_track_and_closes_the_loop() {
+    for method in AssociationMethod::ALL {
+        let (slam, report) = score(method, 1);
+        println!("{method:?}: {report:?}");
+        assert_eq!(slam.loop_closures(), 1, "{method:?}");
+        assert_eq!(slam.mode(), Mode::Localising);
+        assert_eq!(report.phantom, 0, "{method:?}");
+        assert_eq!(report.missed, 0, "{method:?}");
+        assert!(
+            report.association_accuracy > 0.97,
+            "{method:?}: {}",
+            report.association_accuracy
+        );
+        assert!(
+            report.map_rmse_aligned < 0.2,
+            "{method:?}: {}",
+            report.map_rmse_aligned
+        );
+    }
+}
+
+#[test]
+fn a_saved_map_localises_a_new_run_from_an_unknown_start() {
+    let (track, course) = random_track(1, &TrackRules::default());
+    let sim = simulate(
+        &track,
+        &course,
+        &SimConfig {
+            laps: 0.3,
+            seed: 9,
+            preset: Preset::standard(),
+            ..SimConfig::default()
+        },
+    );
+    // Drop the start record: the front end must find the pose on the map.
+    let log: Vec<Record> = sim
+        .log
+        .iter()
+        .filter(|r| !matches!(r, Record::Start { .. }))
+        .cloned()
+        .collect();
+    let mut slam = GraphSlam::with_map(FrontEndConfig::default(), &sim.truth_map);
+    let shifted = cairn_core::SE2::new(5.0, -3.0, 0.4);
+    slam.process(&Record::Start {
+        t: 0.0,
+        pose: shifted,
+    });
+    for r in &log {
+        slam.process(r);
+    }
+    let last = slam.trajectory().last().unwrap();
+    let truth = sim
+        .truth
+        .iter()
+        .find(|p| (p.t - last.t).abs() < 1e-9)
+        .unwrap();
+    let error = (last.pose.t - truth.pose.t).norm();
+    assert!(error < 0.2, "final pose off by {error} m");
+    assert!(
+        slam.trajectory().len() > 50,
+        "localised from the first scans on"
+    );
+    assert_eq!(slam.map().len(), sim.truth_map.len());
+}

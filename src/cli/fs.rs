@@ -1,0 +1,367 @@
+//! The Formula Student commands: `fs-sim`, `fs-slam`, `fs-eval`.
+
+use super::write_output;
+use cairn::plot::{MapPlot, draw};
+use cairn::slam::course::Course;
+use cairn::slam::eval::{Report, evaluate, latency_ms};
+use cairn::slam::files::{self, StampedPose};
+use cairn::slam::frontend::association::AssociationMethod;
+use cairn::slam::frontend::{FrontEndConfig, GraphSlam, MotionModel};
+use cairn::slam::log::{Log, to_jsonl};
+use cairn::slam::sim::{Preset, SimConfig, simulate};
+use cairn::slam::track::{map_from_csv, map_to_csv};
+use cairn::slam::trackgen::{TrackRules, random_track};
+use cairn::slam::{Cone, Track};
+use clap::Args;
+use std::path::{Path, PathBuf};
+
+/// File names inside a simulation directory.
+pub const LOG: &str = "log.jsonl";
+/// True trajectory (TUM).
+pub const TRUTH_TRAJ: &str = "truth_traj.tum";
+/// True association of every detection.
+pub const TRUTH_ASSOC: &str = "truth_assoc.csv";
+/// The true cones; their row order gives the ids in `truth_assoc.csv`.
+pub const TRUTH_MAP: &str = "truth_map.csv";
+
+/// Options of `cairn fs-sim`.
+#[derive(Debug, Args)]
+pub struct SimArgs {
+    /// Track file (EUFS CSV, AMZ fssim YAML, EPFL CSV); without it a random
+    /// rule-conforming track is generated from `--seed`.
+    #[arg(long)]
+    track: Option<PathBuf>,
+    /// Sensor and odometry errors: `standard` or `hard`.
+    #[arg(long, default_value = "standard")]
+    preset: String,
+    /// Laps to drive (acceleration runs are driven once).
+    #[arg(long, default_value_t = 2.0)]
+    laps: f64,
+    /// Speed (m/s).
+    #[arg(long, default_value_t = 5.0)]
+    speed: f64,
+    /// Random seed (track generation and noise).
+    #[arg(long, default_value_t = 1)]
+    seed: u64,
+    /// Output directory: log.jsonl, truth_traj.tum, truth_assoc.csv, truth_map.csv.
+    #[arg(short, long)]
+    out: PathBuf,
+}
+
+/// Options of `cairn fs-slam`.
+#[derive(Debug, Args)]
+pub struct SlamArgs {
+    /// Input log (JSON Lines, FORMAT.md).
+    log: PathBuf,
+    /// Write the map (EUFS CSV).
+    #[arg(long)]
+    map_out: Option<PathBuf>,
+    /// Write the trajectory (TUM).
+    #[arg(long)]
+    traj_out: Option<PathBuf>,
+    /// Write the associations (CSV scan,det,landmark).
+    #[arg(long)]
+    assoc_out: Option<PathBuf>,
+    /// Write update and loop-closure timings (JSON).
+    #[arg(long)]
+    timing_out: Option<PathBuf>,
+    /// Localise on this map (EUFS CSV) from the start, finding the initial alignment.
+    #[arg(long)]
+    map_in: Option<PathBuf>,
+    /// Data association: ml, scnn, jcbb or tracking.
+    #[arg(long, default_value = "tracking")]
+    association: String,
+    /// Motion model: unicycle (speed + yaw rate) or bicycle (speed + steering).
+    #[arg(long, default_value = "unicycle")]
+    motion: String,
+    /// Wheelbase for the bicycle model (m).
+    #[arg(long, default_value_t = 1.55)]
+    wheelbase: f64,
+    /// Keep mapping after the loop closes instead of localising on the map.
+    #[arg(long)]
+    keep_mapping: bool,
+    /// Skip and count malformed log lines instead of stopping at the first.
+    #[arg(long)]
+    skip_bad: bool,
+    /// Assumed detector noise preset (`standard` or `hard`).
+    #[arg(long, default_value = "standard")]
+    noise: String,
+}
+
+/// Options of `cairn fs-eval`.
+#[derive(Debug, Args)]
+pub struct EvalArgs {
+    /// Simulation directory with truth_map.csv, truth_traj.tum, truth_assoc.csv.
+    #[arg(long)]
+    truth: PathBuf,
+    /// Estimated map (EUFS CSV).
+    #[arg(long)]
+    map: PathBuf,
+    /// Estimated trajectory (TUM).
+    #[arg(long)]
+    traj: PathBuf,
+    /// Estimated associations (CSV).
+    #[arg(long)]
+    assoc: PathBuf,
+    /// Timings written by `fs-slam --timing-out`.
+    #[arg(long)]
+    timing: Option<PathBuf>,
+    /// Print JSON instead of a table.
+    #[arg(long)]
+    json: bool,
+    /// Draw the map over the truth and both trajectories (SVG, or PNG by extension).
+    #[arg(long)]
+    plot: Option<PathBuf>,
+}
+
+fn read_text(path: &Path) -> Result<String, String> {
+    std::fs::read_to_string(path).map_err(|e| format!("{}: {e}", path.display()))
+}
+
+/// The front-end configuration that matches a noise preset.
+pub fn front_end_config(preset: &Preset, association: AssociationMethod) -> FrontEndConfig {
+    let s = &preset.sensor;
+    FrontEndConfig {
+        association,
+        range_sigma: s.range_sigma,
+        range_sigma_relative: s.range_sigma_relative,
+        bearing_sigma: s.bearing_sigma,
+        fov: s.fov,
+        max_range: s.max_range,
+        speed_sigma_relative: 2.0 * preset.odometry.speed_scale_bias + 0.01,
+        yaw_rate_sigma: 2.0 * preset.odometry.yaw_rate_bias + 0.015,
+        ..FrontEndConfig::default()
+    }
+}
+
+pub fn run_sim(a: SimArgs) -> Result<(), String> {
+    let preset = Preset::by_name(&a.preset).ok_or("--preset must be standard or hard")?;
+    if !(a.laps > 0.0 && a.speed > 0.0 && a.laps.is_finite() && a.speed.is_finite()) {
+        return Err("--laps and --speed must be positive".into());
+    }
+    let (track, course) = match &a.track {
+        Some(path) => {
+            let track = Track::load(path).map_err(|e| format!("{}: {e}", path.display()))?;
+            let course =
+                Course::from_track(&track).map_err(|e| format!("{}: {e}", path.display()))?;
+            (track, course)
+        }
+        None => random_track(a.seed, &TrackRules::default()),
+    };
+    let config = SimConfig {
+        preset,
+        laps: a.laps,
+        speed: a.speed,
+        seed: a.seed,
+        ..SimConfig::default()
+    };
+    let sim = simulate(&track, &course, &config);
+    std::fs::create_dir_all(&a.out).map_err(|e| format!("{}: {e}", a.out.display()))?;
+    write_output(&a.out.join(LOG), to_jsonl(&sim.log).as_bytes())?;
+    write_output(
+        &a.out.join(TRUTH_TRAJ),
+        files::trajectory_to_tum(&sim.truth).as_bytes(),
+    )?;
+    write_output(
+        &a.out.join(TRUTH_ASSOC),
+        files::associations_to_csv(&sim.truth_associations).as_bytes(),
+    )?;
+    write_output(
+        &a.out.join(TRUTH_MAP),
+        map_to_csv(&sim.truth_map).as_bytes(),
+    )?;
+    eprintln!(
+        "{}: {:.0} m course, {} scans, {} detections → {}",
+        track.name,
+        course.length(),
+        sim.log
+            .iter()
+            .filter(|r| matches!(r, cairn::slam::log::Record::Cones { .. }))
+            .count(),
+        sim.truth_associations.len(),
+        a.out.display()
+    );
+    Ok(())
+}
+
+pub fn run_slam(a: SlamArgs) -> Result<(), String> {
+    let name = a.log.display().to_string();
+    let log = Log::parse(&read_text(&a.log)?, a.skip_bad).map_err(|e| format!("{name}: {e}"))?;
+    for (line, message) in &log.skipped {
+        eprintln!("{name}: skipped line {line}: {message}");
+    }
+    for (kind, n) in &log.unknown_types {
+        eprintln!("{name}: {n} records of unknown type '{kind}' ignored");
+    }
+    let association = AssociationMethod::by_name(&a.association)
+        .ok_or("--association must be ml, scnn, jcbb or tracking")?;
+    let preset = Preset::by_name(&a.noise).ok_or("--noise must be standard or hard")?;
+    let mut config = front_end_config(&preset, association);
+    config.motion = match a.motion.as_str() {
+        "unicycle" => MotionModel::Unicycle,
+        "bicycle" if a.wheelbase > 0.0 => MotionModel::Bicycle {
+            wheelbase: a.wheelbase,
+        },
+        _ => {
+            return Err(
+                "--motion must be unicycle or bicycle (with a positive --wheelbase)".into(),
+            );
+        }
+    };
+    config.localise_after_loop = !a.keep_mapping;
+    let mut slam = match &a.map_in {
+        Some(path) => {
+            let map =
+                map_from_csv(&read_text(path)?).map_err(|e| format!("{}: {e}", path.display()))?;
+            GraphSlam::with_map(config, &map)
+        }
+        None => GraphSlam::new(config),
+    };
+    for record in &log.records {
+        slam.process(record);
+    }
+    // Everything is computed before anything is written, so a failure leaves no partial output.
+    let map = map_to_csv(&slam.map());
+    let traj = files::trajectory_to_tum(slam.trajectory());
+    let assoc = files::associations_to_csv(&slam.associations());
+    let timing = serde_json::json!({
+        "updates_s": slam.timing().updates,
+        "loop_closures_s": slam.timing().loop_closures,
+    })
+    .to_string();
+    for (path, text) in [
+        (&a.map_out, &map),
+        (&a.traj_out, &traj),
+        (&a.assoc_out, &assoc),
+        (&a.timing_out, &timing),
+    ] {
+        if let Some(path) = path {
+            write_output(path, text.as_bytes())?;
+        }
+    }
+    let lat = latency_ms(&slam.timing().updates).unwrap_or_default();
+    eprintln!(
+        "{name}: {} scans, {} landmarks, {} loop closure(s), mode {:?}; update p50 {:.3} ms, p99 {:.3} ms",
+        log.scans(),
+        slam.map().len(),
+        slam.loop_closures(),
+        slam.mode(),
+        lat[0],
+        lat[1]
+    );
+    Ok(())
+}
+
+pub fn run_eval(a: EvalArgs) -> Result<(), String> {
+    let truth_map = map_from_csv(&read_text(&a.truth.join(TRUTH_MAP))?)
+        .map_err(|e| format!("{TRUTH_MAP}: {e}"))?;
+    let truth_traj = files::trajectory_from_tum(&read_text(&a.truth.join(TRUTH_TRAJ))?)
+        .map_err(|e| format!("{TRUTH_TRAJ}: {e}"))?;
+    let truth_assoc = files::associations_from_csv(&read_text(&a.truth.join(TRUTH_ASSOC))?)
+        .map_err(|e| format!("{TRUTH_ASSOC}: {e}"))?;
+    let map = map_from_csv(&read_text(&a.map)?).map_err(|e| format!("{}: {e}", a.map.display()))?;
+    let traj = files::trajectory_from_tum(&read_text(&a.traj)?)
+        .map_err(|e| format!("{}: {e}", a.traj.display()))?;
+    let assoc = files::associations_from_csv(&read_text(&a.assoc)?)
+        .map_err(|e| format!("{}: {e}", a.assoc.display()))?;
+    let mut report = evaluate(&truth_map, &map, &truth_traj, &traj, &truth_assoc, &assoc);
+    if let Some(path) = &a.timing {
+        let v: serde_json::Value = serde_json::from_str(&read_text(path)?)
+            .map_err(|e| format!("{}: {e}", path.display()))?;
+        let list = |key: &str| -> Vec<f64> {
+            v.get(key)
+                .and_then(|x| x.as_array())
+                .map(|a| a.iter().filter_map(|x| x.as_f64()).collect())
+                .unwrap_or_default()
+        };
+        report.latency_ms = latency_ms(&list("updates_s"));
+        report.loop_closure_ms = list("loop_closures_s")
+            .into_iter()
+            .reduce(f64::max)
+            .map(|s| s * 1e3);
+    }
+    if let Some(path) = &a.plot {
+        plot_run(
+            path,
+            &a.map.display().to_string(),
+            &truth_map,
+            &map,
+            &truth_traj,
+            &traj,
+        )?;
+    }
+    if a.json {
+        println!(
+            "{}",
+            serde_json::to_string_pretty(&report).map_err(|e| e.to_string())?
+        );
+    } else {
+        print!("{}", table(&report));
+    }
+    Ok(())
+}
+
+/// Draws a run over its truth.
+pub fn plot_run(
+    path: &Path,
+    title: &str,
+    truth_map: &[Cone],
+    map: &[Cone],
+    truth_traj: &[StampedPose],
+    traj: &[StampedPose],
+) -> Result<(), String> {
+    let true_path: Vec<_> = truth_traj.iter().map(|p| p.pose.t).collect();
+    let est_path: Vec<_> = traj.iter().map(|p| p.pose.t).collect();
+    draw(
+        &MapPlot {
+            title: title.to_string(),
+            truth: truth_map,
+            map,
+            true_path: &true_path,
+            path: &est_path,
+        },
+        path,
+    )
+}
+
+/// The report as an aligned text table.
+pub fn table(r: &Report) -> String {
+    let mut rows = vec![
+        ("landmarks".to_string(), r.landmarks.to_string()),
+        ("map RMSE (m)".into(), format!("{:.3}", r.map_rmse)),
+        (
+            "map RMSE, aligned (m)".into(),
+            format!("{:.3}", r.map_rmse_aligned),
+        ),
+    ];
+    for (c, e, n) in &r.map_rmse_by_color {
+        rows.push((format!("  {c} ({n})"), format!("{e:.3}")));
+    }
+    rows.extend([
+        ("phantom landmarks".into(), r.phantom.to_string()),
+        ("missed cones".into(), r.missed.to_string()),
+        ("ATE (m)".into(), format!("{:.3}", r.ate)),
+        ("ATE, aligned (m)".into(), format!("{:.3}", r.ate_aligned)),
+        (
+            "association accuracy".into(),
+            format!("{:.2}% of {}", 100.0 * r.association_accuracy, r.detections),
+        ),
+    ]);
+    if let Some([p50, p99, max]) = r.latency_ms {
+        rows.push((
+            "update p50/p99/max (ms)".into(),
+            format!("{p50:.3} / {p99:.3} / {max:.3}"),
+        ));
+    }
+    if let Some(ms) = r.loop_closure_ms {
+        rows.push(("loop-closure optimisation (ms)".into(), format!("{ms:.1}")));
+    }
+    let width = rows
+        .iter()
+        .map(|(k, _)| k.chars().count())
+        .max()
+        .unwrap_or(0);
+    rows.iter()
+        .map(|(k, v)| format!("{k:<width$}  {v}\n"))
+        .collect()
+}
