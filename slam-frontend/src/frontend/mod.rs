@@ -199,7 +199,50 @@ pub struct GraphSlam {
     /// False until the first scan has been placed on a given map.
     aligned: bool,
     loop_closures: usize,
+    calibration: Calibration,
     timing: Timing,
+}
+
+/// Odometry corrections learnt online from the landmark-corrected poses:
+/// a speed scale and a yaw-rate bias. The presets' 1–3% speed bias and
+/// 0.002–0.01 rad/s yaw-rate bias would otherwise bend and stretch the map
+/// more than the odometry covariance admits.
+#[derive(Clone, Copy, Debug)]
+pub struct Calibration {
+    /// True speed = measured speed × `speed_scale`.
+    pub speed_scale: f64,
+    /// True yaw rate = measured yaw rate − `yaw_rate_bias` (rad/s).
+    pub yaw_rate_bias: f64,
+}
+
+impl Default for Calibration {
+    fn default() -> Self {
+        Self {
+            speed_scale: 1.0,
+            yaw_rate_bias: 0.0,
+        }
+    }
+}
+
+/// How fast the calibration follows each scan's evidence.
+const CALIBRATION_GAIN: f64 = 0.02;
+
+impl Calibration {
+    /// Nudges the corrections toward what one scan showed: the odometry
+    /// predicted `pred` from `previous`, the landmarks put the car at `pose`.
+    fn learn(&mut self, previous: &SE2, pred: &SE2, pose: &SE2, dt: f64) {
+        let predicted = previous.between(pred);
+        let corrected = previous.between(pose);
+        let length = predicted.t.norm();
+        if length < 0.1 || dt <= 0.0 {
+            return;
+        }
+        let along = corrected.t.dot(&predicted.t) / length;
+        let ratio = (along / length).clamp(0.8, 1.2);
+        self.speed_scale *= 1.0 + CALIBRATION_GAIN * (ratio - 1.0);
+        let residual = cairn_core::se2::normalize_angle(corrected.theta - predicted.theta);
+        self.yaw_rate_bias -= CALIBRATION_GAIN * residual / dt;
+    }
 }
 
 impl GraphSlam {
@@ -226,6 +269,7 @@ impl GraphSlam {
             started: false,
             aligned: true,
             loop_closures: 0,
+            calibration: Calibration::default(),
             timing: Timing::default(),
         }
     }
@@ -278,6 +322,11 @@ impl GraphSlam {
         &self.timing
     }
 
+    /// The odometry corrections learnt so far.
+    pub fn calibration(&self) -> Calibration {
+        self.calibration
+    }
+
     /// The current pose estimate.
     pub fn pose(&self) -> SE2 {
         self.pose
@@ -325,6 +374,10 @@ impl GraphSlam {
         if dt <= 0.0 {
             return;
         }
+        let (v, omega) = (
+            v * self.calibration.speed_scale,
+            omega - self.calibration.yaw_rate_bias,
+        );
         let step = crate::sim::integrate(&SE2::identity(), v, omega, dt);
         // Covariance of delta ∘ step with respect to delta and to (v, ω).
         let r = self.delta.rotation();
@@ -401,6 +454,15 @@ impl GraphSlam {
 
         // Local pose optimisation: odometry prior plus the matched landmarks.
         let (pose, pose_cov) = self.localise(&pred, &pred_cov, cones, &covs, &assigned);
+        let anchors = assigned
+            .iter()
+            .flatten()
+            .filter(|&&l| self.landmarks[l].seen >= 2)
+            .count();
+        if anchors >= 3 {
+            let dt = self.poses.last().map_or(0.0, |p| t - p.t);
+            self.calibration.learn(&previous, &pred, &pose, dt);
+        }
         self.pose = pose;
         self.pose_cov = pose_cov;
         let keyframe = self.poses.len();
@@ -456,7 +518,15 @@ impl GraphSlam {
         if self.mode != Mode::Mapping {
             return;
         }
-        if returned >= self.config.loop_min_returned || self.recognise_place(cones, &covs, keyframe)
+        // A lap ends near where it began; a parallel stretch of track that
+        // passes the start area elsewhere must not count.
+        let near_start = self.poses.first().is_some_and(|p| {
+            (p.pose.t - pose.t).norm() < NEAR_START
+                && cairn_core::se2::normalize_angle(p.pose.theta - pose.theta).abs() < 0.8
+        });
+        if near_start
+            && (returned >= self.config.loop_min_returned
+                || self.recognise_place(cones, &covs, keyframe))
         {
             self.close_loop();
         }
@@ -969,6 +1039,8 @@ impl GraphSlam {
 
 /// Landmarks created within this distance from the start mark the start area (m).
 const START_AREA: f64 = 30.0;
+/// The car counts as back at the start within this distance of its first pose (m).
+const NEAR_START: f64 = 12.0;
 /// The shortest loop (m).
 const MIN_LOOP: f64 = 60.0;
 

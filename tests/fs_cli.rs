@@ -1,0 +1,92 @@
+//! `cairn fs-sim`, `fs-slam` and `fs-eval`, run as a user would: the README demo.
+
+use std::path::{Path, PathBuf};
+use std::process::{Command, Output};
+
+fn cairn(args: &[&str]) -> Output {
+    Command::new(env!("CARGO_BIN_EXE_cairn"))
+        .args(args)
+        .output()
+        .expect("runs")
+}
+
+fn temp_dir(name: &str) -> PathBuf {
+    let dir = std::env::temp_dir().join(format!("cairn-fs-{name}-{}", std::process::id()));
+    let _ = std::fs::remove_dir_all(&dir);
+    std::fs::create_dir_all(&dir).unwrap();
+    dir
+}
+
+fn s(p: &Path) -> &str {
+    p.to_str().unwrap()
+}
+
+#[test]
+fn simulate_map_and_evaluate_a_random_track() {
+    let dir = temp_dir("demo");
+    let o = cairn(&["fs-sim", "--seed", "1", "-o", s(&dir)]);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let (map, traj, assoc, timing) = (
+        dir.join("map.csv"),
+        dir.join("traj.tum"),
+        dir.join("assoc.csv"),
+        dir.join("timing.json"),
+    );
+    let o = cairn(&[
+        "fs-slam",
+        s(&dir.join("log.jsonl")),
+        "--map-out",
+        s(&map),
+        "--traj-out",
+        s(&traj),
+        "--assoc-out",
+        s(&assoc),
+        "--timing-out",
+        s(&timing),
+    ]);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let plot = dir.join("plot.svg");
+    let o = cairn(&[
+        "fs-eval",
+        "--truth",
+        s(&dir),
+        "--map",
+        s(&map),
+        "--traj",
+        s(&traj),
+        "--assoc",
+        s(&assoc),
+        "--timing",
+        s(&timing),
+        "--plot",
+        s(&plot),
+        "--json",
+    ]);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let report: serde_json::Value = serde_json::from_slice(&o.stdout).unwrap();
+    assert_eq!(report["phantom"], 0);
+    assert!(report["association_accuracy"].as_f64().unwrap() > 0.97);
+    assert!(report["latency_ms"][2].as_f64().unwrap() > 0.0);
+    assert!(std::fs::read_to_string(&plot).unwrap().contains("<svg"));
+}
+
+#[test]
+fn a_bad_log_line_is_named_and_leaves_no_output() {
+    let dir = temp_dir("bad");
+    let log = dir.join("log.jsonl");
+    std::fs::write(
+        &log,
+        "{\"t\": 0, \"type\": \"start\"}\n{\"t\": 0.1, \"type\": \"odom\", \"v\": 1}\n",
+    )
+    .unwrap();
+    let map = dir.join("map.csv");
+    let o = cairn(&["fs-slam", s(&log), "--map-out", s(&map)]);
+    assert!(!o.status.success());
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert!(err.contains("line 2") && err.contains("yaw_rate"), "{err}");
+    assert!(!map.exists());
+    let o = cairn(&["fs-slam", s(&log), "--map-out", s(&map), "--skip-bad"]);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    assert!(String::from_utf8_lossy(&o.stderr).contains("skipped line 2"));
+    assert!(map.exists());
+}
