@@ -41,6 +41,9 @@ pub struct SensorModel {
     pub false_positives: f64,
     /// Probability per scan that the tracker swaps the ids of two nearby cones.
     pub id_swap: f64,
+    /// Probability that a clutter object in view (EUFS `inactive_noise`) is
+    /// detected as a cone, with a random colour: a recurring false positive.
+    pub clutter_detection_probability: f64,
 }
 
 /// The odometry's error model.
@@ -76,6 +79,8 @@ impl Preset {
     /// range σ 0.05 m + 1%, bearing σ 0.5°, 2% wrong colour, 5% unknown,
     /// 0.3 false positives per scan; speed σ 0.05 m/s with 1% scale bias,
     /// yaw-rate σ 0.005 rad/s with 0.002 rad/s bias.
+    /// Clutter objects are detected with probability 0.3 and a random colour;
+    /// tracker ids swap with probability 0.01 per scan.
     pub fn standard() -> Preset {
         Preset {
             name: "standard",
@@ -91,6 +96,7 @@ impl Preset {
                 unknown_color: 0.05,
                 false_positives: 0.3,
                 id_swap: 0.01,
+                clutter_detection_probability: 0.3,
             },
             odometry: OdometryModel {
                 rate: 50.0,
@@ -319,17 +325,27 @@ fn detect(
         .iter()
         .enumerate()
         .map(|(i, c)| (Source::Cone(i), c.position, c.color))
-        .chain(track.clutter.iter().enumerate().map(|(i, p)| {
-            let color = [Color::Blue, Color::Yellow, Color::Unknown][i % 3];
-            (Source::Clutter(i), *p, color)
-        }));
+        .chain(
+            track
+                .clutter
+                .iter()
+                .enumerate()
+                .map(|(i, p)| (Source::Clutter(i), *p, Color::Unknown)),
+        );
     for (source, world, color) in objects {
         let local = inverse.transform_point(&world);
         let (r, b) = (local.norm(), local.y.atan2(local.x));
         if r > sensor.max_range || r < 0.5 || b.abs() > sensor.fov / 2.0 {
             continue;
         }
-        if rng.random::<f64>() < sensor.detection_probability {
+        let (probability, color) = match source {
+            Source::Clutter(_) => (
+                sensor.clutter_detection_probability,
+                [Color::Blue, Color::Yellow, Color::Unknown][rng.random_range(0..3)],
+            ),
+            _ => (sensor.detection_probability, color),
+        };
+        if rng.random::<f64>() < probability {
             found.push((source, local, color));
         }
     }

@@ -923,19 +923,28 @@ impl GraphSlam {
                     graph.add_vertex((n + l) as i64, lm.mean)?;
                 }
             }
+            // A cone is seen from dozens of poses; a few sightings spread over
+            // its history fix it as well and keep the Hessian sparse.
+            let mut by_landmark: Vec<Vec<&Observation>> = vec![Vec::new(); self.landmarks.len()];
             for o in &self.observations {
-                let l = self.resolve(o.landmark);
-                if let Some(v) = vertex[l] {
+                by_landmark[self.resolve(o.landmark)].push(o);
+            }
+            for (l, list) in by_landmark.iter().enumerate() {
+                let Some(v) = vertex[l] else { continue };
+                for o in spread(list, MAX_SIGHTINGS) {
                     graph.add_edge(o.pose as i64, v, EdgeSE2XY::new(o.z), o.information)?;
                 }
             }
             Ok(vertex)
         };
         let vertex = add()?;
-        let config = SolverConfig {
+        let mut config = SolverConfig {
             max_iterations: 10,
             ..SolverConfig::default()
         };
+        // Landmarks seen from many poses give dense fronts; faer's automatic
+        // choice picks the slower simplicial factorisation here.
+        config.linear.factorization = cairn_solvers::Factorization::Supernodal;
         let mut optimizer = Optimizer::new(&graph, config)?;
         optimizer.optimize(&mut graph)?;
         for (k, p) in self.poses.iter_mut().enumerate() {
@@ -1046,6 +1055,23 @@ const MIN_LOOP: f64 = 60.0;
 
 /// Landmarks of compatible colours closer than this after a loop closure are one cone (m).
 const MERGE_RADIUS: f64 = 0.7;
+
+/// Sightings per landmark in a full optimisation.
+const MAX_SIGHTINGS: usize = 12;
+
+/// At most `k` items of `list`, evenly spread and including both ends.
+fn spread<'a, T>(list: &'a [T], k: usize) -> impl Iterator<Item = &'a T> + 'a {
+    let n = list.len();
+    let take = n.min(k);
+    (0..take).map(move |i| {
+        let index = if take <= 1 {
+            n - 1
+        } else {
+            i * (n - 1) / (take - 1)
+        };
+        &list[index]
+    })
+}
 
 /// χ² quantile at 99% for `dof` degrees of freedom (Wilson–Hilferty).
 pub fn chi2_99(dof: usize) -> f64 {
