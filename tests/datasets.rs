@@ -240,6 +240,13 @@ fn every_file_round_trips_exactly() {
 
 /// Files where every peer stops in a poor local minimum from the file's own
 /// vertices, with the best-known minimum from the MANIFEST.
+/// Files whose MANIFEST value is marked unverified: Cairn must reach at least
+/// that low (it goes lower on both).
+const UNVERIFIED: [(&str, f64); 2] = [
+    ("2d/M3500c.g2o", 4011.124831),
+    ("landmarks/victoriaPark.g2o", 13098.7279),
+];
+
 const HARD: [(&str, f64); 6] = [
     ("2d/MIT.g2o", 41.163269),
     ("2d/M3500a.g2o", 912.115012),
@@ -252,7 +259,8 @@ const HARD: [(&str, f64); 6] = [
 #[test]
 fn chordal_initialisation_reaches_the_best_known_minima() {
     use cairn::solvers::{Initialization, optimize_from};
-    for (file, minimum) in HARD {
+    let unverified = UNVERIFIED.iter().map(|&(f, m)| (f, m, false));
+    for (file, minimum, exact) in HARD.iter().map(|&(f, m)| (f, m, true)).chain(unverified) {
         let Some(path) = common::dataset(file) else {
             return;
         };
@@ -269,8 +277,9 @@ fn chordal_initialisation_reaches_the_best_known_minima() {
             "{file}: χ² {:.6} from the {used:?} start; best known {minimum}",
             summary.final_chi2
         );
+        let within = if exact { gap.abs() } else { gap };
         assert!(
-            gap.abs() <= 1e-4,
+            within <= 1e-4,
             "{file}: χ² {} vs {minimum}",
             summary.final_chi2
         );

@@ -1,9 +1,9 @@
 //! Choosing the starting point: the file's values, a spanning tree, the chordal
-//! relaxation, or (by default) whichever of the file's values and the chordal
-//! start ends at the lower χ².
+//! relaxation, or (by default) whichever of the file's values and the two
+//! chordal starts ends at the lowest χ².
 
-use crate::chordal::chordal_initialize;
-use crate::config::{IterationStats, SolverConfig, Summary};
+use crate::chordal::{ChordalWeights, chordal_initialize, chordal_initialize_with};
+use crate::config::{Algorithm, IterationStats, SolverConfig, Summary};
 use crate::{Optimizer, SolveError};
 use cairn_core::Graph;
 use serde::{Deserialize, Serialize};
@@ -16,10 +16,15 @@ pub enum Initialization {
     /// Every free vertex predicted along a breadth-first spanning tree from the
     /// fixed and gauge vertices (odometry chaining, for pose graphs).
     SpanningTree,
-    /// Chordal relaxation of the rotations, then linear positions.
+    /// Chordal relaxation of the rotations, then linear positions, weighted by
+    /// the information matrices.
     Chordal,
-    /// Solve from [`Initialization::File`] and from [`Initialization::Chordal`];
-    /// keep the lower final χ².
+    /// The chordal relaxation with every measurement weighted alike.
+    ChordalIsotropic,
+    /// Solve from [`Initialization::File`], [`Initialization::Chordal`] and
+    /// [`Initialization::ChordalIsotropic`]; keep the lowest final χ². When
+    /// Gauss-Newton overshoots from a chordal start (χ² rises in a step),
+    /// Levenberg-Marquardt from that start is tried as well.
     #[default]
     Auto,
 }
@@ -36,6 +41,66 @@ pub fn spanning_tree_initialize(graph: &mut Graph) {
     graph.initialize_spanning_tree(&unknown);
 }
 
+/// Whether χ² rose in some iteration.
+fn overshot(summary: &Summary) -> bool {
+    let mut previous = summary.initial_chi2;
+    summary.trace.iter().any(|it| {
+        let rose = it.chi2 > previous;
+        previous = it.chi2;
+        rose
+    })
+}
+
+/// One solve after another on the same graph structure, keeping the estimate
+/// of the lowest final χ².
+struct Starts<'a> {
+    optimizer: Optimizer,
+    config: SolverConfig,
+    on_iteration: &'a mut dyn FnMut(Initialization, &IterationStats),
+    best: Option<(Summary, Initialization, Vec<f64>)>,
+}
+
+impl Starts<'_> {
+    /// Optimises from the graph's current values with `algorithm` and keeps
+    /// the result if it is the best so far.
+    fn run(
+        &mut self,
+        graph: &mut Graph,
+        start: Initialization,
+        algorithm: Algorithm,
+    ) -> Result<Summary, SolveError> {
+        self.optimizer.set_config(SolverConfig {
+            algorithm,
+            ..self.config
+        });
+        let on_iteration = &mut *self.on_iteration;
+        let summary = self
+            .optimizer
+            .optimize_with(graph, &mut |s| on_iteration(start, s))?;
+        if self
+            .best
+            .as_ref()
+            .is_none_or(|(best, ..)| summary.final_chi2 < best.final_chi2)
+        {
+            let estimate = graph.values().params().to_vec();
+            self.best = Some((summary.clone(), start, estimate));
+        }
+        Ok(summary)
+    }
+
+    /// [`Starts::run`] with the configured algorithm; if that is Gauss-Newton
+    /// and it overshot, Levenberg-Marquardt from the same start as well.
+    fn run_guarded(&mut self, graph: &mut Graph, start: Initialization) -> Result<(), SolveError> {
+        let values = graph.values().params().to_vec();
+        let summary = self.run(graph, start, self.config.algorithm)?;
+        if self.config.algorithm == Algorithm::GaussNewton && overshot(&summary) {
+            graph.values_mut().params_mut().copy_from_slice(&values);
+            self.run(graph, start, Algorithm::LevenbergMarquardt)?;
+        }
+        Ok(())
+    }
+}
+
 /// Initialises as `init` says and optimises. Returns the summary of the run
 /// whose estimate the graph now holds, and which start that was.
 pub fn optimize_from(
@@ -44,39 +109,48 @@ pub fn optimize_from(
     init: Initialization,
     on_iteration: &mut dyn FnMut(Initialization, &IterationStats),
 ) -> Result<(Summary, Initialization), SolveError> {
-    let mut optimizer = Optimizer::new(graph, config)?;
-    let mut run = |graph: &mut Graph, start: Initialization| {
-        optimizer
-            .optimize_with(graph, &mut |s| on_iteration(start, s))
-            .map(|s| (s, start))
+    let algorithm = config.algorithm;
+    let mut starts = Starts {
+        optimizer: Optimizer::new(graph, config)?,
+        config,
+        on_iteration,
+        best: None,
     };
     match init {
-        Initialization::File => run(graph, Initialization::File),
+        Initialization::File => {
+            let summary = starts.run(graph, init, algorithm)?;
+            return Ok((summary, init));
+        }
         Initialization::SpanningTree => {
             spanning_tree_initialize(graph);
-            run(graph, Initialization::SpanningTree)
+            let summary = starts.run(graph, init, algorithm)?;
+            return Ok((summary, init));
         }
         Initialization::Chordal => {
             chordal_initialize(graph)?;
-            run(graph, Initialization::Chordal)
+            let summary = starts.run(graph, init, algorithm)?;
+            return Ok((summary, init));
         }
-        Initialization::Auto => {
-            let initial = graph.values().params().to_vec();
-            let from_file = run(graph, Initialization::File)?;
-            let file_estimate = graph.values().params().to_vec();
-            graph.values_mut().params_mut().copy_from_slice(&initial);
-            let from_chordal =
-                chordal_initialize(graph).and_then(|_| run(graph, Initialization::Chordal));
-            match from_chordal {
-                Ok(chordal) if chordal.0.final_chi2 <= from_file.0.final_chi2 => Ok(chordal),
-                _ => {
-                    graph
-                        .values_mut()
-                        .params_mut()
-                        .copy_from_slice(&file_estimate);
-                    Ok(from_file)
-                }
-            }
+        Initialization::ChordalIsotropic => {
+            chordal_initialize_with(graph, ChordalWeights::Isotropic)?;
+            let summary = starts.run(graph, init, algorithm)?;
+            return Ok((summary, init));
+        }
+        Initialization::Auto => {}
+    }
+    // Auto: a failure from a chordal start only rules that start out.
+    let initial = graph.values().params().to_vec();
+    starts.run(graph, Initialization::File, algorithm)?;
+    for (start, weights) in [
+        (Initialization::Chordal, ChordalWeights::Information),
+        (Initialization::ChordalIsotropic, ChordalWeights::Isotropic),
+    ] {
+        graph.values_mut().params_mut().copy_from_slice(&initial);
+        if chordal_initialize_with(graph, weights).is_ok() {
+            let _ = starts.run_guarded(graph, start);
         }
     }
+    let (summary, start, estimate) = starts.best.expect("the file start was solved");
+    graph.values_mut().params_mut().copy_from_slice(&estimate);
+    Ok((summary, start))
 }

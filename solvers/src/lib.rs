@@ -33,7 +33,7 @@ pub mod marginals;
 pub mod optimizer;
 pub mod structure;
 
-pub use chordal::{ChordalReport, chordal_initialize};
+pub use chordal::{ChordalReport, ChordalWeights, chordal_initialize, chordal_initialize_with};
 pub use config::{
     Algorithm, DoglegConfig, IterationStats, LevenbergMarquardtConfig, PhaseTimes, SolverConfig,
     Summary, Termination,

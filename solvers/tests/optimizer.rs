@@ -406,90 +406,92 @@ fn dogleg_radius_shrinks_on_a_bad_start_and_never_accepts_an_increase() {
 #[test]
 fn chordal_initialisation_recovers_noise_free_graphs_exactly() {
     use cairn_core::{EdgeSE3, SE3};
-    use cairn_solvers::chordal_initialize;
-    use nalgebra::{Matrix6, UnitQuaternion, Vector3};
+    use cairn_solvers::{ChordalWeights, chordal_initialize_with};
+    use nalgebra::{Matrix6, UnitQuaternion, Vector3, Vector6};
     let mut rng = StdRng::seed_from_u64(11);
-    // 2D: a noise-free loop with landmarks, started from scrambled values.
-    let mut g = Graph::new();
-    let truth: Vec<SE2> = (0..30)
-        .map(|i| {
-            SE2::new(
-                (i as f64 * 0.3).cos() * 10.0,
-                (i as f64 * 0.3).sin() * 10.0,
-                i as f64 * 0.3 + 1.6,
-            )
-        })
-        .collect();
-    for (i, x) in truth.iter().enumerate() {
-        let scrambled = if i == 0 {
-            *x
-        } else {
-            SE2::new(
-                rng.random_range(-50.0..50.0),
-                rng.random_range(-50.0..50.0),
-                rng.random_range(-3.0..3.0),
-            )
-        };
-        g.add_vertex(i as i64, scrambled).unwrap();
-    }
-    for i in 0..30 {
-        for j in [i + 1, i + 7] {
-            let j = j % 30;
-            g.add_edge(
-                i as i64,
-                j as i64,
-                EdgeSE2::new(truth[i].between(&truth[j])),
-                Matrix3::identity(),
-            )
-            .unwrap();
+    for weights in [ChordalWeights::Information, ChordalWeights::Isotropic] {
+        // 2D: a noise-free loop with landmarks, started from scrambled values.
+        let mut g = Graph::new();
+        let truth: Vec<SE2> = (0..30)
+            .map(|i| {
+                SE2::new(
+                    (i as f64 * 0.3).cos() * 10.0,
+                    (i as f64 * 0.3).sin() * 10.0,
+                    i as f64 * 0.3 + 1.6,
+                )
+            })
+            .collect();
+        for (i, x) in truth.iter().enumerate() {
+            let scrambled = if i == 0 {
+                *x
+            } else {
+                SE2::new(
+                    rng.random_range(-50.0..50.0),
+                    rng.random_range(-50.0..50.0),
+                    rng.random_range(-3.0..3.0),
+                )
+            };
+            g.add_vertex(i as i64, scrambled).unwrap();
         }
-    }
-    let landmark = Vector2::new(1.0, 2.0);
-    g.add_vertex(100, Vector2::new(40.0, -40.0)).unwrap();
-    for i in [3usize, 17] {
-        let z = truth[i].inverse().transform_point(&landmark);
-        g.add_edge(i as i64, 100, EdgeSE2XY::new(z), Matrix2::identity())
-            .unwrap();
-    }
-    let report = chordal_initialize(&mut g).unwrap();
-    assert_eq!((report.poses, report.landmarks), (29, 1));
-    assert!(g.chi2() < 1e-16, "χ² {}", g.chi2());
-    assert!((g.value::<Vector2<f64>, 2>(100).unwrap() - landmark).norm() < 1e-9);
+        for i in 0..30 {
+            for j in [i + 1, i + 7] {
+                let j = j % 30;
+                g.add_edge(
+                    i as i64,
+                    j as i64,
+                    EdgeSE2::new(truth[i].between(&truth[j])),
+                    Matrix3::from_diagonal(&Vector3::from_fn(|_, _| rng.random_range(0.1..100.0))),
+                )
+                .unwrap();
+            }
+        }
+        let landmark = Vector2::new(1.0, 2.0);
+        g.add_vertex(100, Vector2::new(40.0, -40.0)).unwrap();
+        for i in [3usize, 17] {
+            let z = truth[i].inverse().transform_point(&landmark);
+            g.add_edge(i as i64, 100, EdgeSE2XY::new(z), Matrix2::identity())
+                .unwrap();
+        }
+        let report = chordal_initialize_with(&mut g, weights).unwrap();
+        assert_eq!((report.poses, report.landmarks), (29, 1));
+        assert!(g.chi2() < 1e-16, "χ² {}", g.chi2());
+        assert!((g.value::<Vector2<f64>, 2>(100).unwrap() - landmark).norm() < 1e-9);
 
-    // 3D: the same for SE3 poses.
-    let mut g = Graph::new();
-    let truth: Vec<SE3> = (0..20)
-        .map(|i| {
-            let a = i as f64 * 0.4;
-            SE3::new(
-                Vector3::new(a.cos() * 5.0, a.sin() * 5.0, a),
-                UnitQuaternion::from_euler_angles(0.1 * a, -0.2, a),
-            )
-        })
-        .collect();
-    for (i, x) in truth.iter().enumerate() {
-        let scrambled = if i == 0 {
-            *x
-        } else {
-            SE3::new(
-                Vector3::new(rng.random_range(-9.0..9.0), 0.0, 3.0),
-                UnitQuaternion::from_euler_angles(rng.random_range(-3.0..3.0), 1.0, 0.5),
-            )
-        };
-        g.add_vertex(i as i64, scrambled).unwrap();
-    }
-    for i in 0..20 {
-        for j in [i + 1, i + 5] {
-            let j = j % 20;
-            g.add_edge(
-                i as i64,
-                j as i64,
-                EdgeSE3::new(truth[i].between(&truth[j])),
-                Matrix6::identity(),
-            )
-            .unwrap();
+        // 3D: the same for SE3 poses.
+        let mut g = Graph::new();
+        let truth: Vec<SE3> = (0..20)
+            .map(|i| {
+                let a = i as f64 * 0.4;
+                SE3::new(
+                    Vector3::new(a.cos() * 5.0, a.sin() * 5.0, a),
+                    UnitQuaternion::from_euler_angles(0.1 * a, -0.2, a),
+                )
+            })
+            .collect();
+        for (i, x) in truth.iter().enumerate() {
+            let scrambled = if i == 0 {
+                *x
+            } else {
+                SE3::new(
+                    Vector3::new(rng.random_range(-9.0..9.0), 0.0, 3.0),
+                    UnitQuaternion::from_euler_angles(rng.random_range(-3.0..3.0), 1.0, 0.5),
+                )
+            };
+            g.add_vertex(i as i64, scrambled).unwrap();
         }
+        for i in 0..20 {
+            for j in [i + 1, i + 5] {
+                let j = j % 20;
+                g.add_edge(
+                    i as i64,
+                    j as i64,
+                    EdgeSE3::new(truth[i].between(&truth[j])),
+                    Matrix6::from_diagonal(&Vector6::from_fn(|_, _| rng.random_range(0.1..100.0))),
+                )
+                .unwrap();
+            }
+        }
+        chordal_initialize_with(&mut g, weights).unwrap();
+        assert!(g.chi2() < 1e-16, "χ² {}", g.chi2());
     }
-    chordal_initialize(&mut g).unwrap();
-    assert!(g.chi2() < 1e-16, "χ² {}", g.chi2());
 }

@@ -27,9 +27,11 @@ enum InitName {
     File,
     /// Breadth-first spanning tree (odometry chaining) from the gauge.
     SpanningTree,
-    /// Chordal relaxation: rotations first, then positions.
+    /// Chordal relaxation: rotations first, then positions, weighted by the information.
     Chordal,
-    /// Solve from the file's vertices and from the chordal start; keep the lower χ².
+    /// Chordal relaxation with every measurement weighted alike.
+    ChordalIsotropic,
+    /// Solve from the file's vertices and both chordal starts; keep the lowest χ².
     Auto,
 }
 
@@ -139,6 +141,7 @@ fn start_name(init: Initialization) -> &'static str {
         Initialization::File => "file",
         Initialization::SpanningTree => "spanning-tree",
         Initialization::Chordal => "chordal",
+        Initialization::ChordalIsotropic => "chordal-isotropic",
         Initialization::Auto => "auto",
     }
 }
@@ -314,6 +317,7 @@ pub fn run(a: SolveArgs) -> Result<(), String> {
         InitName::File => Initialization::File,
         InitName::SpanningTree => Initialization::SpanningTree,
         InitName::Chordal => Initialization::Chordal,
+        InitName::ChordalIsotropic => Initialization::ChordalIsotropic,
         InitName::Auto => Initialization::Auto,
     };
     let quiet = a.quiet;
@@ -354,7 +358,7 @@ pub fn run(a: SolveArgs) -> Result<(), String> {
     if !a.quiet {
         eprintln!(
             "{} from {} start: {:?} after {} iterations: χ² {:.6} → {:.6}; load {:.3}s, solve {:.3}s, write {:.3}s{}",
-            config.algorithm.short_name(),
+            summary.algorithm.short_name(),
             start_name(used),
             summary.termination,
             summary.iterations,
