@@ -13,10 +13,18 @@ use faer::sparse::{SparseColMatRef, SymbolicSparseColMatRef};
 use faer::{Conj, MatMut, Par, Side};
 use serde::{Deserialize, Serialize};
 
+/// Multiple of faer's flops-per-non-zero threshold above which
+/// [`Factorization::Auto`] goes supernodal. faer's own (1.0) keeps
+/// parking-garage and intel_slamcourse simplicial, where supernodal measured
+/// 1.7× and 1.2× faster; at 0.5 they switch and nothing else does (lower values
+/// switch files where neither wins clearly). See BENCHMARKS.md.
+const AUTO_SUPERNODAL_THRESHOLD: f64 = 0.5;
+
 /// Which Cholesky variant faer uses.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize, Deserialize)]
 pub enum Factorization {
-    /// faer's own choice from the flop count (`SupernodalThreshold::AUTO`).
+    /// Chosen from the flop count of the symbolic analysis: supernodal when
+    /// the factor has dense fronts (half faer's own threshold, by measurement).
     #[default]
     Auto,
     /// Column by column; best for very sparse factors.
@@ -29,10 +37,12 @@ pub enum Factorization {
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize, Deserialize)]
 pub enum Ordering {
     /// Approximate minimum degree on the scalar pattern.
-    #[default]
     Amd,
     /// Approximate minimum degree on the vertex (block) graph, each vertex's
-    /// columns kept together.
+    /// columns kept together. The default: the same fill as [`Ordering::Amd`]
+    /// on every benchmark file (or a little less), and cheaper to find on the
+    /// large ones (city10000's setup: 46 ms instead of 108 ms).
+    #[default]
     BlockAmd,
     /// The vertex order as it is.
     Identity,
@@ -120,7 +130,7 @@ impl SparseCholesky {
         config: &LinearSolverConfig,
     ) -> Result<Self, SolveError> {
         let threshold = match config.factorization {
-            Factorization::Auto => SupernodalThreshold::AUTO,
+            Factorization::Auto => SupernodalThreshold(AUTO_SUPERNODAL_THRESHOLD),
             Factorization::Simplicial => SupernodalThreshold::FORCE_SIMPLICIAL,
             Factorization::Supernodal => SupernodalThreshold::FORCE_SUPERNODAL,
         };

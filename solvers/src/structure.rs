@@ -23,19 +23,24 @@ struct Gather {
 }
 
 impl Gather {
-    fn from_pairs(targets: usize, mut pairs: Vec<(u32, u32)>) -> Self {
-        pairs.sort_unstable();
+    /// Groups `(target, source)` pairs by target with a counting sort, which
+    /// keeps each target's sources in the order given (the edges' order, so
+    /// every entry is summed in the same order whatever the thread count).
+    fn from_pairs(targets: usize, pairs: &[(u32, u32)]) -> Self {
         let mut start = vec![0u32; targets + 1];
-        for &(t, _) in &pairs {
+        for &(t, _) in pairs {
             start[t as usize + 1] += 1;
         }
         for t in 0..targets {
             start[t + 1] += start[t];
         }
-        Self {
-            start,
-            source: pairs.into_iter().map(|(_, s)| s).collect(),
+        let mut next = start.clone();
+        let mut source = vec![0u32; pairs.len()];
+        for &(t, s) in pairs {
+            source[next[t as usize] as usize] = s;
+            next[t as usize] += 1;
         }
+        Self { start, source }
     }
 
     fn apply(&self, buffer: &[f64], out: &mut [f64]) {
@@ -237,8 +242,8 @@ impl HessianStructure {
             diagonal,
             group_offset,
             buffer_len,
-            hessian: Gather::from_pairs(nnz, h_pairs),
-            gradient: Gather::from_pairs(dim, g_pairs),
+            hessian: Gather::from_pairs(nnz, &h_pairs),
+            gradient: Gather::from_pairs(dim, &g_pairs),
             chi2_slots,
         })
     }

@@ -47,7 +47,7 @@ enum OrderingName {
 
 #[derive(Clone, Copy, Debug, PartialEq, Eq, ValueEnum)]
 enum FactorizationName {
-    /// faer's choice.
+    /// From the flop count: supernodal when the factor has dense fronts.
     Auto,
     /// Column by column.
     Simplicial,
@@ -99,7 +99,7 @@ pub struct SolveArgs {
     #[arg(long, value_enum, default_value = "auto")]
     factorization: FactorizationName,
     /// Fill-reducing ordering.
-    #[arg(long, value_enum, default_value = "amd")]
+    #[arg(long, value_enum, default_value = "block-amd")]
     ordering: OrderingName,
     /// Worker threads (0: one per core).
     #[arg(long, default_value_t = 0)]

@@ -1,0 +1,297 @@
+#!/usr/bin/env python3
+"""Benchmark suite: Cairn against the peers of ../shared/peers, in one run.
+
+For every g2o file with at least --min-vertices vertices in the harness's
+prepared data (../shared/peers/data, identical input for every library), and
+for GN and LM: Cairn and each peer solve from the file's own vertices with at
+most 100 iterations and a relative-decrease stop of 1e-5 (the peers' rule),
+--reps times each, interleaved. Every final estimate is scored with the
+harness's common χ² (g2o's objective). Prints the table, writes every run to
+--jsonl and the table between the suite markers of BENCHMARKS.md.
+
+Run it with the harness's Python (it imports the harness's scorer, which needs
+numpy):
+
+  cargo build --release
+  ../shared/peers/.venv/bin/python scripts/bench.py [--reps 3] [--only city10000,sphere2500]
+      [--peers gtsam,g2o,apex,tiny,factrs] [--algos gn,lm] [--threads 1]
+
+Without a set-up harness (no .venv or peers-rust) it runs Cairn alone.
+"""
+
+import argparse
+import json
+import os
+import re
+import statistics
+import subprocess
+import sys
+import tempfile
+import time
+
+HERE = os.path.dirname(os.path.abspath(__file__))
+ROOT = os.path.dirname(HERE)
+PEERS_ALL = ["gtsam", "g2o", "apex", "tiny", "factrs"]
+
+
+def peer_command(peers_dir, lib, algo, path):
+    if lib in ("gtsam", "g2o"):
+        python = os.path.join(peers_dir, ".venv", "bin", "python")
+        return [python, os.path.join(peers_dir, "run_peer.py"), "--lib", lib, "--algo", algo, path]
+    rust = os.path.join(peers_dir, "rust", "target", "release", "peers-rust")
+    return [rust, "--lib", lib, "--algo", algo, path]
+
+
+def peer_available(peers_dir, lib):
+    command = peer_command(peers_dir, lib, "gn", "x")
+    return os.path.exists(command[0])
+
+
+def run_peer(peers_dir, lib, algo, path, env, timeout):
+    try:
+        p = subprocess.run(peer_command(peers_dir, lib, algo, path), capture_output=True,
+                           text=True, env=env, timeout=timeout)
+    except subprocess.TimeoutExpired:
+        return dict(status="timeout")
+    lines = [line for line in p.stdout.splitlines() if line.startswith("{")]
+    if not lines:
+        return dict(status="crash", error=(p.stderr or "")[-300:])
+    return json.loads(lines[-1])
+
+
+def run_cairn(cairn, algo, path, threads, env, timeout, scorer):
+    with tempfile.TemporaryDirectory() as tmp:
+        out = os.path.join(tmp, "out.g2o")
+        command = [cairn, "solve", path, "--init", "file", "--solver", algo, "-i", "100",
+                   "--relative-decrease", "1e-5", "--threads", str(threads), "--json", "-q",
+                   "-o", out]
+        t0 = time.perf_counter()
+        try:
+            p = subprocess.run(command, capture_output=True, text=True, env=env, timeout=timeout)
+        except subprocess.TimeoutExpired:
+            return dict(status="timeout")
+        wall = time.perf_counter() - t0
+        if p.returncode != 0:
+            refused = "not positive definite" in p.stderr
+            return dict(status="refused (indefinite information)" if refused else "error",
+                        error=p.stderr[-300:])
+        d = json.loads(p.stdout)
+        s = d["summary"]
+        rec = dict(status="ok", iterations=s["iterations"], solve_s=d["solve_s"],
+                   load_s=d["load_s"], write_s=d["write_s"], process_s=wall,
+                   final_chi2=s["final_chi2"], phases=s["phases"], supernodal=s["supernodal"])
+        if scorer is not None:
+            rec["common_chi2"] = scorer(path, out)
+        return rec
+
+
+def make_scorer(peers_dir):
+    """The harness's common χ² of an estimate written by Cairn, or None
+    without the harness's Python packages."""
+    sys.path.insert(0, peers_dir)
+    try:
+        import g2o_common
+    except ImportError:
+        return None
+
+    def score(original, estimate):
+        g = g2o_common.read_g2o(original)
+        e = g2o_common.read_g2o(estimate)
+        return g2o_common.common_chi2(g, e.pose_est, e.point_est)
+
+    return score
+
+
+def vertex_count(path):
+    with open(path) as fh:
+        return sum(1 for line in fh if line.startswith("VERTEX"))
+
+
+def median(xs):
+    return statistics.median(xs) if xs else None
+
+
+def summarise(rows):
+    """Median solve time, last χ² and iterations per (file, algo, lib)."""
+    out = {}
+    for r in rows:
+        key = (r["file"], r["algo"], r["lib"])
+        out.setdefault(key, []).append(r)
+    table = {}
+    for key, rs in out.items():
+        good = [r for r in rs if r.get("solve_s") is not None and r.get("common_chi2") is not None]
+        if not good:
+            table[key] = dict(status=rs[-1].get("status"))
+            continue
+        table[key] = dict(
+            solve_s=median([r["solve_s"] for r in good]),
+            process_s=median([r["process_s"] for r in good if "process_s" in r]),
+            wall_s=median([r["wall_s"] for r in good if "wall_s" in r]),
+            load_s=median([r["load_s"] for r in good if r.get("load_s") is not None]),
+            chi2=good[-1]["common_chi2"],
+            iterations=good[-1].get("iterations"),
+            runs=len(good),
+        )
+    return table
+
+
+def fmt_time(s):
+    return "–" if s is None else f"{s * 1000:.0f} ms" if s < 10 else f"{s:.1f} s"
+
+
+def render(table, files, algos, peers):
+    head = ["dataset", "algo", "Cairn it", "Cairn solve", "Cairn χ²", "fastest peer",
+            "its solve", "its χ²", "ratio", "χ² ok"] + [f"÷ {p}" for p in peers]
+    lines = ["| " + " | ".join(head) + " |", "|" + "---|" * len(head)]
+    for f in files:
+        for algo in algos:
+            c = table.get((f, algo, "cairn"))
+            if not c:
+                continue
+            if c.get("solve_s") is None:
+                lines.append(f"| {f[:-4]} | {algo} | Cairn: {c.get('status')} |" + " |" * (len(head) - 3))
+                continue
+            ok_peers = [(p, table[(f, algo, p)]) for p in peers
+                        if table.get((f, algo, p), {}).get("solve_s") is not None]
+            fastest = min(ok_peers, key=lambda pr: pr[1]["solve_s"], default=None)
+            cells = [f[:-4], algo, str(c["iterations"]), fmt_time(c["solve_s"]),
+                     f"{c['chi2']:.6f}"]
+            if fastest:
+                p, r = fastest
+                ratio = c["solve_s"] / r["solve_s"]
+                chi2_ok = c["chi2"] <= r["chi2"] * (1 + 1e-6)
+                cells += [p, fmt_time(r["solve_s"]), f"{r['chi2']:.6f}", f"{ratio:.2f}",
+                          "yes" if chi2_ok else "**no**"]
+            else:
+                cells += ["–"] * 5
+            for p in peers:
+                r = table.get((f, algo, p), {})
+                cells.append(f"{c['solve_s'] / r['solve_s']:.2f}" if r.get("solve_s") else
+                             (r.get("status") or "–"))
+            lines.append("| " + " | ".join(cells) + " |")
+    return "\n".join(lines)
+
+
+def render_process(table, files):
+    """Whole `cairn solve` process (parse + solve + write), GN, against g2o's
+    load + solve."""
+    lines = ["| dataset | Cairn process | Cairn load + solve + write | g2o load + solve | ratio |",
+             "|---|---:|---:|---:|---:|"]
+    for f in files:
+        c, g = table.get((f, "gn", "cairn")), table.get((f, "gn", "g2o"))
+        if not c or c.get("process_s") is None:
+            continue
+        g2o_total = g["load_s"] + g["solve_s"] if g and g.get("solve_s") is not None else None
+        inner = c["load_s"] + c["solve_s"]
+        ratio = "–" if g2o_total is None else f"{c['process_s'] / g2o_total:.2f}"
+        lines.append(f"| {f[:-4]} | {fmt_time(c['process_s'])} | {fmt_time(inner)} | "
+                     f"{fmt_time(g2o_total)} | {ratio} |")
+    return "\n".join(lines)
+
+
+def render_phases(rows, files):
+    """Cairn's GN phase times per iteration (medians over the runs), and the
+    share of an iteration outside the numeric factorisation and solves."""
+    names = ["linearize", "assemble", "factorize", "solve", "update", "chi2"]
+    lines = ["| dataset | it | " + " | ".join(names) + " | other | outside factorise + solve |",
+             "|---|---:|" + "---:|" * (len(names) + 2)]
+    for f in files:
+        runs = [r for r in rows if r["file"] == f and r["algo"] == "gn" and r["lib"] == "cairn"
+                and r.get("phases") and r.get("iterations")]
+        if not runs:
+            continue
+        per_it = {n: median([r["phases"][n] / r["iterations"] for r in runs]) for n in names}
+        total = median([r["solve_s"] / r["iterations"] for r in runs])
+        other = max(total - sum(per_it.values()), 0.0)
+        outside = (total - per_it["factorize"] - per_it["solve"]) / total
+        cells = [f"{per_it[n] * 1000:.2f}" for n in names]
+        lines.append(f"| {f[:-4]} | {runs[0]['iterations']} | " + " | ".join(cells) +
+                     f" | {other * 1000:.2f} | {outside:.0%} |")
+    lines.append("")
+    lines.append("Milliseconds per iteration; *other* is setup (structure and symbolic "
+                 "analysis, once per solve) and bookkeeping, spread over the iterations.")
+    return "\n".join(lines)
+
+
+def write_section(path, name, text):
+    begin, end = f"<!-- {name}:begin -->", f"<!-- {name}:end -->"
+    doc = open(path).read() if os.path.exists(path) else ""
+    if begin in doc and end in doc:
+        doc = re.sub(re.escape(begin) + ".*?" + re.escape(end),
+                     lambda _: f"{begin}\n{text}\n{end}", doc, flags=re.S)
+    else:
+        doc += f"\n{begin}\n{text}\n{end}\n"
+    tmp = path + ".tmp"
+    with open(tmp, "w") as fh:
+        fh.write(doc)
+    os.replace(tmp, path)
+
+
+def main():
+    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    ap.add_argument("--cairn", default=os.path.join(ROOT, "target", "release", "cairn"))
+    ap.add_argument("--peers-dir", default=os.path.join(ROOT, "..", "shared", "peers"))
+    ap.add_argument("--peers", default=",".join(PEERS_ALL))
+    ap.add_argument("--algos", default="gn,lm")
+    ap.add_argument("--only", default="")
+    ap.add_argument("--min-vertices", type=int, default=1000)
+    ap.add_argument("--reps", type=int, default=3)
+    ap.add_argument("--threads", type=int, default=1, help="threads for every library")
+    ap.add_argument("--timeout", type=float, default=300)
+    ap.add_argument("--jsonl", default=os.path.join(ROOT, "docs", "bench", "suite.jsonl"))
+    ap.add_argument("--doc", default=os.path.join(ROOT, "BENCHMARKS.md"),
+                    help="write the tables between its suite markers ('' for none)")
+    a = ap.parse_args()
+
+    data = os.path.join(a.peers_dir, "data")
+    if not os.path.isdir(data):
+        sys.exit(f"{data} is missing: set up ../shared/peers first (see its README)")
+    files = sorted(f for f in os.listdir(data) if f.endswith(".g2o"))
+    if a.only:
+        keep = set(a.only.split(","))
+        files = [f for f in files if f[:-4] in keep or f in keep]
+    files = [f for f in files if vertex_count(os.path.join(data, f)) >= a.min_vertices]
+    files.sort(key=lambda f: os.path.getsize(os.path.join(data, f)))
+    peers = [p for p in a.peers.split(",") if p and peer_available(a.peers_dir, p)]
+    algos = a.algos.split(",")
+    scorer = make_scorer(a.peers_dir)
+    if scorer is None:
+        print("note: numpy is missing, so Cairn's χ² is not scored by the harness", file=sys.stderr)
+    env = dict(os.environ)
+    for k in ("RAYON_NUM_THREADS", "OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS"):
+        env[k] = str(a.threads)
+
+    os.makedirs(os.path.dirname(a.jsonl), exist_ok=True)
+    rows = []
+    with open(a.jsonl, "w") as log:
+        for f in files:
+            path = os.path.join(data, f)
+            for algo in algos:
+                for rep in range(a.reps):
+                    for lib in ["cairn"] + peers:
+                        if lib == "cairn":
+                            rec = run_cairn(a.cairn, algo, path, a.threads, env, a.timeout, scorer)
+                        else:
+                            t0 = time.perf_counter()
+                            rec = run_peer(a.peers_dir, lib, algo, path, env, a.timeout)
+                            rec["wall_s"] = time.perf_counter() - t0
+                        rec.update(lib=lib, algo=algo, file=f, rep=rep, threads=a.threads)
+                        rows.append(rec)
+                        log.write(json.dumps(rec) + "\n")
+                        log.flush()
+                        print(f"{f:30s} {algo} {lib:7s} rep {rep}: solve {rec.get('solve_s')} "
+                              f"χ² {rec.get('common_chi2')}", file=sys.stderr, flush=True)
+
+    table = summarise(rows)
+    suite = render(table, files, algos, peers)
+    process = render_process(table, files)
+    phases = render_phases(rows, files)
+    print(suite, process, phases, sep="\n\n")
+    if a.doc:
+        write_section(a.doc, "suite", suite)
+        write_section(a.doc, "process", process)
+        write_section(a.doc, "phases", phases)
+
+
+if __name__ == "__main__":
+    main()
