@@ -66,6 +66,55 @@ pub struct Pair {
     pub bhattacharyya: f64,
 }
 
+impl Pair {
+    /// The pair of a detection with noise `r` and a landmark whose predicted
+    /// measurement has covariance `s_landmark` from the landmark and
+    /// `h_pose · pose_cov · h_poseᵀ` from the pose. `colour_penalty` is
+    /// added to χ² when the colours disagree. `None` when χ² exceeds `gate`
+    /// or the innovation covariance is singular.
+    #[allow(clippy::too_many_arguments)]
+    pub fn new(
+        landmark: usize,
+        innovation: Vector2<f64>,
+        h_pose: SMatrix<f64, 2, 3>,
+        r: &Matrix2<f64>,
+        s_landmark: &Matrix2<f64>,
+        pose_cov: &nalgebra::Matrix3<f64>,
+        colour_penalty: f64,
+        gate: f64,
+    ) -> Option<Pair> {
+        let s_pose = h_pose * pose_cov * h_pose.transpose();
+        let s_local = s_landmark + r;
+        let s = s_pose + s_local;
+        let d2 = innovation.dot(&(s.try_inverse()? * innovation)) + colour_penalty;
+        // NaN fails the gate too.
+        if d2.is_nan() || d2 > gate {
+            return None;
+        }
+        let det = s.determinant().max(1e-300);
+        // Bhattacharyya distance between N(z, R') and N(h, Pₘ'), with the
+        // pose uncertainty shared between them.
+        let sigma = 0.5 * s;
+        let b1 = 0.125 * innovation.dot(&(sigma.try_inverse()? * innovation));
+        let s1 = r + s_pose;
+        let b2 = 0.5
+            * (sigma.determinant()
+                / (s1.determinant() * s_landmark.determinant())
+                    .max(1e-300)
+                    .sqrt())
+            .ln();
+        Some(Pair {
+            landmark,
+            d2,
+            cost: d2 + det.ln(),
+            innovation,
+            h_pose,
+            s_local,
+            bhattacharyya: b1 + b2 + if colour_penalty > 0.0 { 1.0 } else { 0.0 },
+        })
+    }
+}
+
 /// For each detection, its compatible pairs sorted by cost.
 pub type Candidates = Vec<Vec<Pair>>;
 

@@ -9,6 +9,8 @@ pub mod association;
 use crate::color::Color;
 use crate::files::{Association, StampedPose};
 use crate::log::{Detection, Record};
+use crate::motion::{Odometry, compose_with_cov};
+use crate::sighting::{Sighting, View, in_view, near_start};
 use crate::track::Cone;
 use association::{AssociationMethod, Candidates, Pair, associate};
 use cairn_core::{EdgeSE2, EdgeSE2XY, Graph, SE2};
@@ -17,18 +19,7 @@ use nalgebra::{Matrix2, Matrix3, SMatrix, Vector2};
 use std::collections::HashMap;
 use std::time::Instant;
 
-/// How odometry moves the pose between records.
-#[derive(Clone, Copy, Debug, PartialEq)]
-pub enum MotionModel {
-    /// Speed and the measured yaw rate.
-    Unicycle,
-    /// Speed and the steering angle: ω = v·tan(δ)/L (falls back to the yaw
-    /// rate when the log has no `steer`).
-    Bicycle {
-        /// Wheelbase L (m).
-        wheelbase: f64,
-    },
-}
+pub use crate::motion::{MotionModel, MotionNoise};
 
 /// Settings of the front end.
 #[derive(Clone, Debug)]
@@ -54,6 +45,9 @@ pub struct FrontEndConfig {
     pub speed_sigma_relative: f64,
     /// Yaw-rate σ (rad/s), covering its bias.
     pub yaw_rate_sigma: f64,
+    /// Model odometry noise as Thrun's rotation–translation–rotation with
+    /// these α₁…α₄ instead of the speed and yaw-rate σ above.
+    pub rot_trans_rot: Option<[f64; 4]>,
     /// Individual-compatibility gate on the innovation's Mahalanobis χ² (2 dof).
     pub gate: f64,
     /// A detection farther than this χ² from every landmark starts a new one;
@@ -83,6 +77,7 @@ impl Default for FrontEndConfig {
             speed_sigma: 0.1,
             speed_sigma_relative: 0.03,
             yaw_rate_sigma: 0.02,
+            rot_trans_rot: None,
             gate: 9.21,
             new_landmark_gate: 25.0,
             color_penalty: 6.0,
@@ -90,6 +85,38 @@ impl Default for FrontEndConfig {
             loop_min_returned: 4,
             localise_after_loop: true,
         }
+    }
+}
+
+impl FrontEndConfig {
+    /// The odometry noise model these settings describe.
+    pub fn motion_noise(&self) -> MotionNoise {
+        match self.rot_trans_rot {
+            Some(alpha) => MotionNoise::RotTransRot { alpha },
+            None => MotionNoise::Velocity {
+                speed_sigma: self.speed_sigma,
+                speed_sigma_relative: self.speed_sigma_relative,
+                yaw_rate_sigma: self.yaw_rate_sigma,
+            },
+        }
+    }
+
+    /// Measurement covariance of a detection in the vehicle frame: the
+    /// log's, or the assumed range and bearing noise.
+    pub fn detection_cov(&self, d: &Detection) -> Matrix2<f64> {
+        if let Some(c) = d.covariance {
+            return c;
+        }
+        let r = d.position.norm();
+        let b = d.position.y.atan2(d.position.x);
+        let j = Matrix2::new(b.cos(), -r * b.sin(), b.sin(), r * b.cos());
+        j * self.range_bearing_cov(r) * j.transpose()
+    }
+
+    /// Assumed covariance of a (range, bearing) measurement at range `r`.
+    pub fn range_bearing_cov(&self, r: f64) -> Matrix2<f64> {
+        let sr = self.range_sigma + self.range_sigma_relative * r;
+        Matrix2::new(sr * sr, 0.0, 0.0, self.bearing_sigma.powi(2))
     }
 }
 
@@ -102,48 +129,12 @@ pub enum Mode {
     Localising,
 }
 
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
-enum View {
-    Visible,
-    Left,
-    Returned,
-}
-
 #[derive(Clone, Debug)]
 struct Landmark {
     mean: Vector2<f64>,
     cov: Matrix2<f64>,
-    votes: [u32; 5],
-    seen: u32,
-    missed: u32,
-    confirmed: bool,
     removed: bool,
-    view: View,
-    last_seen: usize,
-    last_seen_distance: f64,
-    /// Distance driven and heading when the landmark was created.
-    created_distance: f64,
-    /// See `created_distance`.
-    created_heading: f64,
-}
-
-impl Landmark {
-    fn color(&self) -> Color {
-        Color::KNOWN
-            .into_iter()
-            .max_by_key(|c| self.votes[c.index()])
-            .filter(|c| self.votes[c.index()] > 0)
-            .unwrap_or(Color::Unknown)
-    }
-
-    /// Whether `color` contradicts a clear majority of the votes.
-    fn contradicts(&self, color: Color) -> bool {
-        if color == Color::Unknown {
-            return false;
-        }
-        let known: u32 = Color::KNOWN.iter().map(|c| self.votes[c.index()]).sum();
-        known > 0 && 2 * self.votes[color.index()] < known
-    }
+    sighting: Sighting,
 }
 
 struct Observation {
@@ -181,11 +172,7 @@ pub struct GraphSlam {
     pose: SE2,
     pose_cov: Matrix3<f64>,
     /// Motion since the last keyframe and its covariance (in that keyframe's frame).
-    delta: SE2,
-    delta_cov: Matrix3<f64>,
-    odom: Option<(f64, f64, f64)>,
-    odom_time: Option<f64>,
-    distance: f64,
+    motion: Odometry,
     poses: Vec<StampedPose>,
     odometry: Vec<(SE2, Matrix3<f64>)>,
     observations: Vec<Observation>,
@@ -228,6 +215,11 @@ impl Default for Calibration {
 const CALIBRATION_GAIN: f64 = 0.02;
 
 impl Calibration {
+    /// (speed scale, yaw-rate bias), as [`Odometry`] applies them.
+    pub fn correction(&self) -> (f64, f64) {
+        (self.speed_scale, self.yaw_rate_bias)
+    }
+
     /// Nudges the corrections toward what one scan showed: the odometry
     /// predicted `pred` from `previous`, the landmarks put the car at `pose`.
     fn learn(&mut self, previous: &SE2, pred: &SE2, pose: &SE2, dt: f64) {
@@ -249,15 +241,11 @@ impl GraphSlam {
     /// A front end that starts mapping at the origin (or the log's `start`).
     pub fn new(config: FrontEndConfig) -> Self {
         Self {
+            motion: Odometry::new(config.motion, config.motion_noise()),
             config,
             mode: Mode::Mapping,
             pose: SE2::identity(),
             pose_cov: Matrix3::identity() * 1e-9,
-            delta: SE2::identity(),
-            delta_cov: Matrix3::zeros(),
-            odom: None,
-            odom_time: None,
-            distance: 0.0,
             poses: Vec::new(),
             odometry: Vec::new(),
             observations: Vec::new(),
@@ -281,8 +269,6 @@ impl GraphSlam {
         slam.mode = Mode::Localising;
         slam.aligned = false;
         for c in map {
-            let mut votes = [0; 5];
-            votes[c.color.index()] = 100;
             let cov = if c.covariance.determinant() > 0.0 {
                 c.covariance
             } else {
@@ -291,16 +277,8 @@ impl GraphSlam {
             slam.landmarks.push(Landmark {
                 mean: c.position,
                 cov,
-                votes,
-                seen: 100,
-                missed: 0,
-                confirmed: true,
                 removed: false,
-                view: View::Visible,
-                last_seen: 0,
-                last_seen_distance: 0.0,
-                created_distance: 0.0,
-                created_heading: 0.0,
+                sighting: Sighting::known(c.color),
             });
             slam.alias.push(slam.alias.len());
         }
@@ -347,67 +325,17 @@ impl GraphSlam {
                 steer,
                 ..
             } => {
-                self.advance(*t);
-                let omega = match (self.config.motion, steer) {
-                    (MotionModel::Bicycle { wheelbase }, Some(s)) => v * s.tan() / wheelbase,
-                    _ => *yaw_rate,
-                };
-                self.odom = Some((*v, omega, *t));
-                self.odom_time = Some(*t);
+                let correction = self.calibration.correction();
+                self.motion.record(*t, *v, *yaw_rate, *steer, correction);
             }
             Record::Cones { t, cones } => {
-                self.advance(*t);
+                self.motion.advance(*t, self.calibration.correction());
                 let start = Instant::now();
                 self.update(*t, cones);
                 self.timing.updates.push(start.elapsed().as_secs_f64());
             }
             Record::Points { .. } => {}
         }
-    }
-
-    /// Integrates the held odometry up to time `t`.
-    fn advance(&mut self, t: f64) {
-        let (Some((v, omega, _)), Some(t0)) = (self.odom, self.odom_time) else {
-            return;
-        };
-        let dt = t - t0;
-        if dt <= 0.0 {
-            return;
-        }
-        let (v, omega) = (
-            v * self.calibration.speed_scale,
-            omega - self.calibration.yaw_rate_bias,
-        );
-        let step = crate::sim::integrate(&SE2::identity(), v, omega, dt);
-        // Covariance of delta ∘ step with respect to delta and to (v, ω).
-        let r = self.delta.rotation();
-        let dr = Matrix2::new(0.0, -1.0, 1.0, 0.0) * r;
-        let mut f = Matrix3::identity();
-        f.fixed_view_mut::<2, 1>(0, 2).copy_from(&(dr * step.t));
-        let mut g = SMatrix::<f64, 3, 2>::zeros();
-        g.fixed_view_mut::<2, 1>(0, 0)
-            .copy_from(&(r * Vector2::new(dt, 0.0)));
-        g[(2, 1)] = dt;
-        let sv = self.config.speed_sigma + self.config.speed_sigma_relative * v.abs();
-        let q = Matrix2::new(sv * sv, 0.0, 0.0, self.config.yaw_rate_sigma.powi(2));
-        // The odometry errors are mostly bias, so they add up over a scan
-        // interval rather than average out; scale as for 10 correlated steps.
-        self.delta_cov = f * self.delta_cov * f.transpose() + g * q * g.transpose() * 10.0;
-        self.delta = self.delta.compose(&step);
-        self.distance += (v * dt).abs();
-        self.odom_time = Some(t);
-    }
-
-    /// Measurement covariance of a detection in the vehicle frame.
-    fn detection_cov(&self, d: &Detection) -> Matrix2<f64> {
-        if let Some(c) = d.covariance {
-            return c;
-        }
-        let r = d.position.norm();
-        let b = d.position.y.atan2(d.position.x);
-        let sr = self.config.range_sigma + self.config.range_sigma_relative * r;
-        let j = Matrix2::new(b.cos(), -r * b.sin(), b.sin(), r * b.cos());
-        j * Matrix2::new(sr * sr, 0.0, 0.0, self.config.bearing_sigma.powi(2)) * j.transpose()
     }
 
     fn update(&mut self, t: f64, cones: &[Detection]) {
@@ -417,24 +345,15 @@ impl GraphSlam {
             // Not placed on the map yet: these detections stay unassociated.
             self.detections
                 .extend((0..cones.len()).map(|i| (scan, i, None)));
-            self.pose = self.pose.compose(&self.delta);
-            self.delta = SE2::identity();
-            self.delta_cov = Matrix3::zeros();
+            self.pose = self.pose.compose(&self.motion.take().0);
             return;
         }
         // Predict the pose from the last keyframe.
         let previous = self.pose;
-        let pred = previous.compose(&self.delta);
-        let mut j1 = Matrix3::identity();
-        let dr = Matrix2::new(0.0, -1.0, 1.0, 0.0) * previous.rotation();
-        j1.fixed_view_mut::<2, 1>(0, 2)
-            .copy_from(&(dr * self.delta.t));
-        let mut j2 = Matrix3::identity();
-        j2.fixed_view_mut::<2, 2>(0, 0)
-            .copy_from(&previous.rotation());
-        let pred_cov = j1 * self.pose_cov * j1.transpose() + j2 * self.delta_cov * j2.transpose();
+        let (delta, delta_cov) = self.motion.take();
+        let (pred, pred_cov) = compose_with_cov(&previous, &self.pose_cov, &delta, &delta_cov);
 
-        let covs: Vec<Matrix2<f64>> = cones.iter().map(|d| self.detection_cov(d)).collect();
+        let covs: Vec<Matrix2<f64>> = cones.iter().map(|d| self.config.detection_cov(d)).collect();
         let (candidates, nearest) = self.candidates(&pred, &pred_cov, cones, &covs);
         let tracked: Vec<Option<usize>> = cones
             .iter()
@@ -457,7 +376,7 @@ impl GraphSlam {
         let anchors = assigned
             .iter()
             .flatten()
-            .filter(|&&l| self.landmarks[l].seen >= 2)
+            .filter(|&&l| self.landmarks[l].sighting.seen >= 2)
             .count();
         if anchors >= 3 {
             let dt = self.poses.last().map_or(0.0, |p| t - p.t);
@@ -468,11 +387,8 @@ impl GraphSlam {
         let keyframe = self.poses.len();
         self.poses.push(StampedPose { t, pose });
         if keyframe > 0 {
-            let info = nearest_information(&self.delta_cov);
-            self.odometry.push((self.delta, info));
+            self.odometry.push((delta, nearest_information(&delta_cov)));
         }
-        self.delta = SE2::identity();
-        self.delta_cov = Matrix3::zeros();
 
         let mut returned = 0;
         let mut associated = vec![false; self.landmarks.len()];
@@ -501,18 +417,10 @@ impl GraphSlam {
                 });
                 self.refine(l, &pose, &pose_cov, d, &covs[i]);
             }
-            let start_area = self.is_start_area(l);
-            let lm = &mut self.landmarks[l];
-            if lm.view == View::Left && start_area {
-                lm.view = View::Returned;
+            let (distance, heading) = (self.motion.distance(), self.pose.theta);
+            if self.landmarks[l].sighting.revisit(scan, distance, heading) {
                 returned += 1;
-            } else if lm.view == View::Returned {
-                returned += 1;
-            } else if lm.view == View::Left {
-                lm.view = View::Visible;
             }
-            lm.last_seen = scan;
-            lm.last_seen_distance = self.distance;
         }
         self.count_misses(&pose, &associated, scan);
         if self.mode != Mode::Mapping {
@@ -520,10 +428,10 @@ impl GraphSlam {
         }
         // A lap ends near where it began; a parallel stretch of track that
         // passes the start area elsewhere must not count.
-        let near_start = self.poses.first().is_some_and(|p| {
-            (p.pose.t - pose.t).norm() < NEAR_START
-                && cairn_core::se2::normalize_angle(p.pose.theta - pose.theta).abs() < 0.8
-        });
+        let near_start = self
+            .poses
+            .first()
+            .is_some_and(|p| near_start(&p.pose, &pose));
         if near_start
             && (returned >= self.config.loop_min_returned
                 || self.recognise_place(cones, &covs, keyframe))
@@ -532,16 +440,11 @@ impl GraphSlam {
         }
     }
 
-    /// A loop closes when the car comes back to where it started: landmarks
-    /// mapped in the first [`START_AREA`] metres, seen again after driving
-    /// at least [`MIN_LOOP`] metres, heading the same way. Adjacent parts
-    /// of a track driven the other way then cannot fake a closure.
+    /// Whether landmark `l` marks the start of the lap ([`Sighting::is_start_area`]).
     fn is_start_area(&self, l: usize) -> bool {
-        let lm = &self.landmarks[l];
-        let turned = cairn_core::se2::normalize_angle(self.pose.theta - lm.created_heading);
-        lm.created_distance < START_AREA
-            && self.distance > lm.created_distance + MIN_LOOP
-            && turned.abs() < 0.8
+        self.landmarks[l]
+            .sighting
+            .is_start_area(self.motion.distance(), self.pose.theta)
     }
 
     /// Drift can put returning landmarks outside the association gates, so
@@ -560,9 +463,9 @@ impl GraphSlam {
             .filter(|&l| {
                 let lm = &self.landmarks[l];
                 self.alias[l] == l
-                    && lm.confirmed
+                    && lm.sighting.confirmed
                     && !lm.removed
-                    && lm.view == View::Left
+                    && lm.sighting.view == View::Left
                     && self.is_start_area(l)
                     && (lm.mean - self.pose.t).norm() < reach
             })
@@ -572,7 +475,7 @@ impl GraphSlam {
         }
         let map: Vec<(Vector2<f64>, Color)> = old
             .iter()
-            .map(|&l| (self.landmarks[l].mean, self.landmarks[l].color()))
+            .map(|&l| (self.landmarks[l].mean, self.landmarks[l].sighting.color()))
             .collect();
         let Some((aligned, inliers)) = align::align(&map, cones) else {
             return false;
@@ -601,7 +504,7 @@ impl GraphSlam {
                     information: nearest_information2(&covs[i]),
                 });
                 self.detections[first + i].2 = Some(l);
-                self.landmarks[l].view = View::Returned;
+                self.landmarks[l].sighting.view = View::Returned;
             }
         }
         true
@@ -611,9 +514,12 @@ impl GraphSlam {
     /// fall on map cones, else the best two-point alignment. Needs three
     /// agreeing detections.
     fn align_to_map(&mut self, cones: &[Detection]) -> bool {
-        let map: Vec<(Vector2<f64>, Color)> =
-            self.landmarks.iter().map(|l| (l.mean, l.color())).collect();
-        let here = self.pose.compose(&self.delta);
+        let map: Vec<(Vector2<f64>, Color)> = self
+            .landmarks
+            .iter()
+            .map(|l| (l.mean, l.sighting.color()))
+            .collect();
+        let here = self.pose.compose(&self.motion.pending());
         let agree = |pose: &SE2| {
             cones
                 .iter()
@@ -634,8 +540,7 @@ impl GraphSlam {
         let Some(pose) = found else { return false };
         self.pose = pose;
         self.pose_cov = Matrix3::from_diagonal(&nalgebra::Vector3::new(0.25, 0.25, 0.05));
-        self.delta = SE2::identity();
-        self.delta_cov = Matrix3::zeros();
+        self.motion.take();
         self.aligned = true;
         true
     }
@@ -657,7 +562,7 @@ impl GraphSlam {
                 let lm = &self.landmarks[l];
                 !lm.removed
                     && self.alias[l] == l
-                    && (self.mode == Mode::Mapping || lm.confirmed)
+                    && (self.mode == Mode::Mapping || lm.sighting.confirmed)
                     && (lm.mean - pose.t).norm() < reach
             })
             .collect();
@@ -677,38 +582,21 @@ impl GraphSlam {
                         let mut h_pose = SMatrix::<f64, 2, 3>::zeros();
                         h_pose.fixed_view_mut::<2, 2>(0, 0).copy_from(&(-rt));
                         h_pose.fixed_view_mut::<2, 1>(0, 2).copy_from(&(drt * diff));
-                        let s_local = rt * lm.cov * rt.transpose() + r;
-                        let s = h_pose * pose_cov * h_pose.transpose() + s_local;
-                        let inv = s.try_inverse()?;
-                        let mut d2 = innovation.dot(&(inv * innovation));
-                        if lm.contradicts(d.color) {
-                            d2 += self.config.color_penalty;
-                        }
-                        if d2 > self.config.new_landmark_gate {
-                            return None;
-                        }
-                        let det = s.determinant().max(1e-300);
-                        // Bhattacharyya distance between N(z, R') and N(h, Pₘ'),
-                        // with the pose uncertainty shared between them.
-                        let sigma = 0.5 * s;
-                        let b1 = 0.125 * innovation.dot(&(sigma.try_inverse()? * innovation));
-                        let s1 = r + h_pose * pose_cov * h_pose.transpose();
-                        let s2 = rt * lm.cov * rt.transpose();
-                        let b2 = 0.5
-                            * (sigma.determinant()
-                                / (s1.determinant() * s2.determinant()).max(1e-300).sqrt())
-                            .ln();
-                        Some(Pair {
-                            landmark: l,
-                            d2,
-                            cost: d2 + det.ln(),
+                        let penalty = if lm.sighting.contradicts(d.color) {
+                            self.config.color_penalty
+                        } else {
+                            0.0
+                        };
+                        Pair::new(
+                            l,
                             innovation,
                             h_pose,
-                            s_local,
-                            bhattacharyya: b1
-                                + b2
-                                + if lm.contradicts(d.color) { 1.0 } else { 0.0 },
-                        })
+                            r,
+                            &(rt * lm.cov * rt.transpose()),
+                            pose_cov,
+                            penalty,
+                            self.config.new_landmark_gate,
+                        )
                     })
                     .collect();
                 pairs.sort_by(|a, b| a.d2.total_cmp(&b.d2));
@@ -758,7 +646,7 @@ impl GraphSlam {
             for (i, l) in assigned.iter().enumerate() {
                 let Some(l) = *l else { continue };
                 let lm = &self.landmarks[l];
-                if lm.seen < 2 {
+                if lm.sighting.seen < 2 {
                     continue;
                 }
                 let diff = lm.mean - pose.t;
@@ -807,21 +695,11 @@ impl GraphSlam {
         r: &Matrix2<f64>,
         scan: usize,
     ) -> usize {
-        let mut votes = [0; 5];
-        votes[d.color.index()] += 1;
         self.landmarks.push(Landmark {
             mean: pose.transform_point(&d.position),
             cov: self.world_cov(pose, pose_cov, d, r),
-            votes,
-            seen: 0,
-            missed: 0,
-            confirmed: false,
             removed: false,
-            view: View::Visible,
-            last_seen: scan,
-            last_seen_distance: self.distance,
-            created_distance: self.distance,
-            created_heading: pose.theta,
+            sighting: Sighting::new(d.color, scan, self.motion.distance(), pose.theta),
         });
         self.alias.push(self.alias.len());
         self.landmarks.len() - 1
@@ -839,7 +717,7 @@ impl GraphSlam {
         let z = pose.transform_point(&d.position);
         let rw = self.world_cov(pose, pose_cov, d, r);
         let lm = &mut self.landmarks[l];
-        if lm.seen > 0
+        if lm.sighting.seen > 0
             && let Some(inv) = (lm.cov + rw).try_inverse()
         {
             let k = lm.cov * inv;
@@ -847,35 +725,26 @@ impl GraphSlam {
             lm.cov = (Matrix2::identity() - k) * lm.cov;
             lm.cov = 0.5 * (lm.cov + lm.cov.transpose());
         }
-        lm.votes[d.color.index()] += 1;
-        lm.seen += 1;
-        if lm.seen >= self.config.confirm_after {
-            lm.confirmed = true;
-        }
+        lm.sighting.count(d.color, self.config.confirm_after);
     }
 
     /// Counts misses of landmarks well inside the field of view, removes
     /// those missed more often than seen, and tracks which left the view.
     fn count_misses(&mut self, pose: &SE2, associated: &[bool], scan: usize) {
         let inverse = pose.inverse();
-        let (fov, range) = (self.config.fov / 2.0 - 0.1, self.config.max_range - 1.0);
+        let mapping = self.mode == Mode::Mapping;
+        let distance = self.motion.distance();
         for (l, lm) in self.landmarks.iter_mut().enumerate() {
             if lm.removed || self.alias[l] != l {
                 continue;
             }
-            let local = inverse.transform_point(&lm.mean);
-            let visible =
-                local.norm() < range && local.norm() > 1.0 && local.y.atan2(local.x).abs() < fov;
-            if visible && !associated.get(l).copied().unwrap_or(false) && self.mode == Mode::Mapping
+            let visible = in_view(&self.config, &inverse, &lm.mean);
+            let seen = associated.get(l).copied().unwrap_or(false);
+            if lm
+                .sighting
+                .after_scan(visible, seen, mapping, scan, distance)
             {
-                lm.missed += 1;
-                if lm.missed > lm.seen + 1 && !(lm.confirmed && lm.seen >= 10) {
-                    lm.removed = true;
-                }
-            }
-            if !visible && scan > lm.last_seen + 10 && self.distance > lm.last_seen_distance + 20.0
-            {
-                lm.view = View::Left;
+                lm.removed = true;
             }
         }
     }
@@ -892,8 +761,8 @@ impl GraphSlam {
             .loop_closures
             .push(start.elapsed().as_secs_f64());
         for lm in &mut self.landmarks {
-            if lm.view == View::Returned {
-                lm.view = View::Visible;
+            if lm.sighting.view == View::Returned {
+                lm.sighting.view = View::Visible;
             }
         }
         if self.config.localise_after_loop {
@@ -918,7 +787,7 @@ impl GraphSlam {
             }
             let mut vertex = vec![None; self.landmarks.len()];
             for (l, lm) in self.landmarks.iter().enumerate() {
-                if lm.confirmed && !lm.removed && self.alias[l] == l {
+                if lm.sighting.confirmed && !lm.removed && self.alias[l] == l {
                     vertex[l] = Some((n + l) as i64);
                     graph.add_vertex((n + l) as i64, lm.mean)?;
                 }
@@ -967,7 +836,9 @@ impl GraphSlam {
     fn merge_duplicates(&mut self) {
         let live: Vec<usize> = (0..self.landmarks.len())
             .filter(|&l| {
-                self.alias[l] == l && !self.landmarks[l].removed && self.landmarks[l].confirmed
+                self.alias[l] == l
+                    && !self.landmarks[l].removed
+                    && self.landmarks[l].sighting.confirmed
             })
             .collect();
         for (a_pos, &a) in live.iter().enumerate() {
@@ -980,17 +851,21 @@ impl GraphSlam {
                 }
                 let (la, lb) = (&self.landmarks[a], &self.landmarks[b]);
                 if (la.mean - lb.mean).norm() < MERGE_RADIUS
-                    && (la.color() == lb.color()
-                        || la.color() == Color::Unknown
-                        || lb.color() == Color::Unknown)
+                    && (la.sighting.color() == lb.sighting.color()
+                        || la.sighting.color() == Color::Unknown
+                        || lb.sighting.color() == Color::Unknown)
                 {
-                    let (keep, drop) = if la.seen >= lb.seen { (a, b) } else { (b, a) };
+                    let (keep, drop) = if la.sighting.seen >= lb.sighting.seen {
+                        (a, b)
+                    } else {
+                        (b, a)
+                    };
                     let dropped = self.landmarks[drop].clone();
                     let kept = &mut self.landmarks[keep];
                     for k in 0..5 {
-                        kept.votes[k] += dropped.votes[k];
+                        kept.sighting.votes[k] += dropped.sighting.votes[k];
                     }
-                    kept.seen += dropped.seen;
+                    kept.sighting.seen += dropped.sighting.seen;
                     self.alias[drop] = keep;
                     if drop == a {
                         break;
@@ -1004,7 +879,9 @@ impl GraphSlam {
     fn map_rows(&self) -> Vec<usize> {
         (0..self.landmarks.len())
             .filter(|&l| {
-                self.alias[l] == l && !self.landmarks[l].removed && self.landmarks[l].confirmed
+                self.alias[l] == l
+                    && !self.landmarks[l].removed
+                    && self.landmarks[l].sighting.confirmed
             })
             .collect()
     }
@@ -1017,7 +894,7 @@ impl GraphSlam {
                 let lm = &self.landmarks[l];
                 Cone {
                     position: lm.mean,
-                    color: lm.color(),
+                    color: lm.sighting.color(),
                     covariance: lm.cov,
                 }
             })
@@ -1045,13 +922,6 @@ impl GraphSlam {
             .collect()
     }
 }
-
-/// Landmarks created within this distance from the start mark the start area (m).
-const START_AREA: f64 = 30.0;
-/// The car counts as back at the start within this distance of its first pose (m).
-const NEAR_START: f64 = 12.0;
-/// The shortest loop (m).
-const MIN_LOOP: f64 = 60.0;
 
 /// Landmarks of compatible colours closer than this after a loop closure are one cone (m).
 const MERGE_RADIUS: f64 = 0.7;

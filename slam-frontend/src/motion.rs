@@ -1,0 +1,234 @@
+//! Motion models shared by every estimator: odometry records are integrated
+//! into the relative motion since the last scan and its covariance.
+
+use cairn_core::SE2;
+use nalgebra::{Matrix2, Matrix3, SMatrix, Vector2};
+
+/// How odometry turns into a yaw rate.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum MotionModel {
+    /// Speed and the measured yaw rate.
+    Unicycle,
+    /// Speed and the steering angle: ω = v·tan(δ)/L (falls back to the yaw
+    /// rate when the log has no `steer`).
+    Bicycle {
+        /// Wheelbase L (m).
+        wheelbase: f64,
+    },
+}
+
+/// How the uncertainty of one odometry step is modelled.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum MotionNoise {
+    /// Velocity model: independent errors on speed (σ plus a fraction of
+    /// the speed) and on the yaw rate.
+    Velocity {
+        /// Speed σ (m/s).
+        speed_sigma: f64,
+        /// Speed σ per m/s of speed (covers a scale bias).
+        speed_sigma_relative: f64,
+        /// Yaw-rate σ (rad/s).
+        yaw_rate_sigma: f64,
+    },
+    /// The odometry model of Thrun et al. (Probabilistic Robotics, 5.4): the
+    /// step as a rotation δrot1, a translation δtrans and a rotation δrot2,
+    /// with variances α₁δrot² + α₂δtrans² for the rotations and
+    /// α₃δtrans² + α₄(δrot1² + δrot2²) for the translation.
+    RotTransRot {
+        /// α₁ … α₄.
+        alpha: [f64; 4],
+    },
+}
+
+impl MotionNoise {
+    /// The command-line name.
+    pub fn name(&self) -> &'static str {
+        match self {
+            MotionNoise::Velocity { .. } => "velocity",
+            MotionNoise::RotTransRot { .. } => "rot-trans-rot",
+        }
+    }
+}
+
+/// Odometry errors are mostly bias, so they add up over a scan interval
+/// rather than average out; the step covariance is scaled as for this many
+/// correlated steps.
+const CORRELATED_STEPS: f64 = 10.0;
+
+/// Integrates odometry records into the motion since the last
+/// [`Odometry::take`], with its covariance (in the frame of the pose it
+/// started from).
+#[derive(Clone, Debug)]
+pub struct Odometry {
+    model: MotionModel,
+    noise: MotionNoise,
+    /// (speed, yaw rate) held until the next record.
+    held: Option<(f64, f64)>,
+    time: Option<f64>,
+    delta: SE2,
+    delta_cov: Matrix3<f64>,
+    distance: f64,
+}
+
+impl Odometry {
+    /// An integrator with no motion yet.
+    pub fn new(model: MotionModel, noise: MotionNoise) -> Self {
+        Self {
+            model,
+            noise,
+            held: None,
+            time: None,
+            delta: SE2::identity(),
+            delta_cov: Matrix3::zeros(),
+            distance: 0.0,
+        }
+    }
+
+    /// Integrates up to `t` with the held record, then holds this one.
+    pub fn record(
+        &mut self,
+        t: f64,
+        v: f64,
+        yaw_rate: f64,
+        steer: Option<f64>,
+        correction: (f64, f64),
+    ) {
+        self.advance(t, correction);
+        let omega = match (self.model, steer) {
+            (MotionModel::Bicycle { wheelbase }, Some(s)) => v * s.tan() / wheelbase,
+            _ => yaw_rate,
+        };
+        self.held = Some((v, omega));
+        self.time = Some(t);
+    }
+
+    /// Integrates the held record up to time `t`. `correction` is
+    /// (speed scale, yaw-rate bias): true v = scale·v, true ω = ω − bias.
+    pub fn advance(&mut self, t: f64, (scale, bias): (f64, f64)) {
+        let (Some((v, omega)), Some(t0)) = (self.held, self.time) else {
+            return;
+        };
+        let dt = t - t0;
+        if dt <= 0.0 || !dt.is_finite() {
+            return;
+        }
+        let (v, omega) = (v * scale, omega - bias);
+        let step = crate::sim::integrate(&SE2::identity(), v, omega, dt);
+        // Covariance of delta ∘ step: F with respect to delta, and the
+        // step's own covariance rotated into delta's frame.
+        let r = self.delta.rotation();
+        let mut f = Matrix3::identity();
+        f.fixed_view_mut::<2, 1>(0, 2)
+            .copy_from(&(skew() * r * step.t));
+        let mut rot = Matrix3::identity();
+        rot.fixed_view_mut::<2, 2>(0, 0).copy_from(&r);
+        let step_cov = self.step_cov(v, dt, &step);
+        self.delta_cov = f * self.delta_cov * f.transpose()
+            + rot * step_cov * rot.transpose() * CORRELATED_STEPS;
+        self.delta = self.delta.compose(&step);
+        self.distance += (v * dt).abs();
+        self.time = Some(t);
+    }
+
+    /// Covariance of one step (in the frame it starts from).
+    fn step_cov(&self, v: f64, dt: f64, step: &SE2) -> Matrix3<f64> {
+        match self.noise {
+            MotionNoise::Velocity {
+                speed_sigma,
+                speed_sigma_relative,
+                yaw_rate_sigma,
+            } => {
+                // First order in dt: the step moves v·dt ahead and turns ω·dt.
+                let mut g = SMatrix::<f64, 3, 2>::zeros();
+                g[(0, 0)] = dt;
+                g[(2, 1)] = dt;
+                let sv = speed_sigma + speed_sigma_relative * v.abs();
+                let q = Matrix2::new(sv * sv, 0.0, 0.0, yaw_rate_sigma.powi(2));
+                g * q * g.transpose()
+            }
+            MotionNoise::RotTransRot { alpha } => {
+                let (rot1, trans, rot2) = rot_trans_rot(step);
+                let var = nalgebra::Vector3::new(
+                    alpha[0] * rot1 * rot1 + alpha[1] * trans * trans,
+                    alpha[2] * trans * trans + alpha[3] * (rot1 * rot1 + rot2 * rot2),
+                    alpha[0] * rot2 * rot2 + alpha[1] * trans * trans,
+                );
+                let j = rot_trans_rot_jacobian(rot1, trans);
+                j * Matrix3::from_diagonal(&var) * j.transpose()
+            }
+        }
+    }
+
+    /// The motion since the last call, with its covariance; starts anew.
+    pub fn take(&mut self) -> (SE2, Matrix3<f64>) {
+        let out = (self.delta, self.delta_cov);
+        self.delta = SE2::identity();
+        self.delta_cov = Matrix3::zeros();
+        out
+    }
+
+    /// The motion since the last [`Odometry::take`], without resetting it.
+    pub fn pending(&self) -> SE2 {
+        self.delta
+    }
+
+    /// Distance driven so far (m).
+    pub fn distance(&self) -> f64 {
+        self.distance
+    }
+}
+
+/// A relative pose as (δrot1, δtrans, δrot2).
+pub fn rot_trans_rot(step: &SE2) -> (f64, f64, f64) {
+    let trans = step.t.norm();
+    let rot1 = if trans > 1e-12 {
+        step.t.y.atan2(step.t.x)
+    } else {
+        0.0
+    };
+    let rot2 = cairn_core::se2::normalize_angle(step.theta - rot1);
+    (rot1, trans, rot2)
+}
+
+/// ∂(x, y, θ)/∂(δrot1, δtrans, δrot2) of the pose reached from the origin.
+pub fn rot_trans_rot_jacobian(rot1: f64, trans: f64) -> Matrix3<f64> {
+    let (s, c) = rot1.sin_cos();
+    Matrix3::new(-trans * s, c, 0.0, trans * c, s, 0.0, 1.0, 0.0, 1.0)
+}
+
+/// The pose `pose ∘ delta` and its covariance, first order, from the
+/// covariances of `pose` (world frame) and `delta` (in `pose`'s frame).
+pub fn compose_with_cov(
+    pose: &SE2,
+    pose_cov: &Matrix3<f64>,
+    delta: &SE2,
+    delta_cov: &Matrix3<f64>,
+) -> (SE2, Matrix3<f64>) {
+    let (j_pose, j_delta) = compose_jacobians(pose, delta);
+    (
+        pose.compose(delta),
+        j_pose * pose_cov * j_pose.transpose() + j_delta * delta_cov * j_delta.transpose(),
+    )
+}
+
+/// Jacobians of `pose ∘ delta` (as x, y, θ) with respect to `pose` and to `delta`.
+pub fn compose_jacobians(pose: &SE2, delta: &SE2) -> (Matrix3<f64>, Matrix3<f64>) {
+    let r = pose.rotation();
+    let mut j_pose = Matrix3::identity();
+    j_pose
+        .fixed_view_mut::<2, 1>(0, 2)
+        .copy_from(&(skew() * r * delta.t));
+    let mut j_delta = Matrix3::identity();
+    j_delta.fixed_view_mut::<2, 2>(0, 0).copy_from(&r);
+    (j_pose, j_delta)
+}
+
+/// The 90° rotation: d R(θ)/dθ = skew · R(θ).
+fn skew() -> Matrix2<f64> {
+    Matrix2::new(0.0, -1.0, 1.0, 0.0)
+}
+
+/// A 2-vector rotated by 90°, for the derivative of a rotated point.
+pub fn perpendicular(v: &Vector2<f64>) -> Vector2<f64> {
+    skew() * v
+}

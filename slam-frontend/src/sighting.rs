@@ -1,0 +1,173 @@
+//! What every estimator remembers about a landmark besides its position:
+//! colour votes, sightings and misses (to confirm or drop it), and whether
+//! it left the view and came back at the start of a lap (loop closure).
+
+use crate::color::Color;
+use crate::frontend::FrontEndConfig;
+use cairn_core::SE2;
+use cairn_core::se2::normalize_angle;
+use nalgebra::Vector2;
+
+/// Landmarks created within this distance from the start mark the start area (m).
+pub const START_AREA: f64 = 30.0;
+/// The car counts as back at the start within this distance of its first pose (m).
+pub const NEAR_START: f64 = 12.0;
+/// The shortest loop (m).
+pub const MIN_LOOP: f64 = 60.0;
+
+/// Where a landmark stands relative to the car's view.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum View {
+    /// In view, or left only recently.
+    Visible,
+    /// Out of view for a while.
+    Left,
+    /// Seen again at the start of a new lap.
+    Returned,
+}
+
+/// Per-landmark bookkeeping shared by the estimators.
+#[derive(Clone, Debug)]
+pub struct Sighting {
+    /// Colour votes, by [`Color::index`].
+    pub votes: [u32; 5],
+    /// Times associated.
+    pub seen: u32,
+    /// Times in view but not associated.
+    pub missed: u32,
+    /// Seen often enough to be part of the map.
+    pub confirmed: bool,
+    /// See [`View`].
+    pub view: View,
+    /// Scan and distance driven when last seen.
+    pub last_seen: usize,
+    /// See `last_seen`.
+    pub last_seen_distance: f64,
+    /// Distance driven and heading when the landmark was created.
+    pub created_distance: f64,
+    /// See `created_distance`.
+    pub created_heading: f64,
+}
+
+impl Sighting {
+    /// A landmark first detected with `color` in `scan`, after driving
+    /// `distance`, heading `heading`. It is not counted as seen yet.
+    pub fn new(color: Color, scan: usize, distance: f64, heading: f64) -> Self {
+        let mut votes = [0; 5];
+        votes[color.index()] += 1;
+        Self {
+            votes,
+            seen: 0,
+            missed: 0,
+            confirmed: false,
+            view: View::Visible,
+            last_seen: scan,
+            last_seen_distance: distance,
+            created_distance: distance,
+            created_heading: heading,
+        }
+    }
+
+    /// A landmark of a given map: confirmed, with a settled colour.
+    pub fn known(color: Color) -> Self {
+        let mut s = Self::new(Color::Unknown, 0, 0.0, 0.0);
+        s.votes = [0; 5];
+        s.votes[color.index()] = 100;
+        s.seen = 100;
+        s.confirmed = true;
+        s
+    }
+
+    /// The colour most votes went to.
+    pub fn color(&self) -> Color {
+        Color::KNOWN
+            .into_iter()
+            .max_by_key(|c| self.votes[c.index()])
+            .filter(|c| self.votes[c.index()] > 0)
+            .unwrap_or(Color::Unknown)
+    }
+
+    /// Whether `color` contradicts a clear majority of the votes.
+    pub fn contradicts(&self, color: Color) -> bool {
+        if color == Color::Unknown {
+            return false;
+        }
+        let known: u32 = Color::KNOWN.iter().map(|c| self.votes[c.index()]).sum();
+        known > 0 && 2 * self.votes[color.index()] < known
+    }
+
+    /// Counts a sighting with `color`; confirms after `confirm_after`.
+    pub fn count(&mut self, color: Color, confirm_after: u32) {
+        self.votes[color.index()] += 1;
+        self.seen += 1;
+        if self.seen >= confirm_after {
+            self.confirmed = true;
+        }
+    }
+
+    /// Whether the landmark marks the start of the lap: created in the first
+    /// [`START_AREA`] metres and seen again after driving at least
+    /// [`MIN_LOOP`] metres, heading the same way. Adjacent parts of a track
+    /// driven the other way then cannot fake a closure.
+    pub fn is_start_area(&self, distance: f64, heading: f64) -> bool {
+        self.created_distance < START_AREA
+            && distance > self.created_distance + MIN_LOOP
+            && normalize_angle(heading - self.created_heading).abs() < 0.8
+    }
+
+    /// Records that the landmark was associated in `scan`; returns whether
+    /// it counts as returned at the start of a new lap.
+    pub fn revisit(&mut self, scan: usize, distance: f64, heading: f64) -> bool {
+        let start_area = self.is_start_area(distance, heading);
+        let returned = match self.view {
+            View::Left if start_area => {
+                self.view = View::Returned;
+                true
+            }
+            View::Left => {
+                self.view = View::Visible;
+                false
+            }
+            View::Returned => true,
+            View::Visible => false,
+        };
+        self.last_seen = scan;
+        self.last_seen_distance = distance;
+        returned
+    }
+
+    /// Updates the counts and the view after a scan: `visible` says whether
+    /// the landmark should have been seen, `associated` whether it was.
+    /// Returns whether it was missed so often while mapping that it should
+    /// be dropped.
+    pub fn after_scan(
+        &mut self,
+        visible: bool,
+        associated: bool,
+        mapping: bool,
+        scan: usize,
+        distance: f64,
+    ) -> bool {
+        let mut drop = false;
+        if visible && !associated && mapping {
+            self.missed += 1;
+            drop = self.missed > self.seen + 1 && !(self.confirmed && self.seen >= 10);
+        }
+        if !visible && scan > self.last_seen + 10 && distance > self.last_seen_distance + 20.0 {
+            self.view = View::Left;
+        }
+        drop
+    }
+}
+
+/// Whether a world point lies well inside the assumed field of view.
+pub fn in_view(config: &FrontEndConfig, pose_inverse: &SE2, point: &Vector2<f64>) -> bool {
+    let local = pose_inverse.transform_point(point);
+    let (fov, range) = (config.fov / 2.0 - 0.1, config.max_range - 1.0);
+    local.norm() < range && local.norm() > 1.0 && local.y.atan2(local.x).abs() < fov
+}
+
+/// Whether `pose` is back where the run began (same place, same heading).
+pub fn near_start(first: &SE2, pose: &SE2) -> bool {
+    (first.t - pose.t).norm() < NEAR_START && normalize_angle(first.theta - pose.theta).abs() < 0.8
+}
