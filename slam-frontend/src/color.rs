@@ -33,6 +33,12 @@ impl Color {
         }
     }
 
+    /// Whether two detections could be the same cone: the same colour, or
+    /// either unknown.
+    pub fn compatible(self, other: Color) -> bool {
+        self == other || self == Color::Unknown || other == Color::Unknown
+    }
+
     /// Index 0..5, for vote counters.
     pub fn index(self) -> usize {
         self as usize

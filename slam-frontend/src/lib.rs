@@ -3,12 +3,16 @@
 //! - [`track`], [`trackgen`], [`course`]: ground-truth tracks (EUFS, AMZ fssim,
 //!   EPFL), random rule-conforming tracks, and the centre line a car drives;
 //! - [`sim`]: a seeded simulator writing the input log and its ground truth;
-//! - [`log`], [`files`]: the interchange formats of `shared/fs/FORMAT.md`.
+//! - [`log`], [`files`]: the interchange formats of `shared/fs/FORMAT.md`;
+//! - [`frontend`]: the graph-SLAM front end; [`filter`]: EKF-SLAM and
+//!   FastSLAM 1.0/2.0 beside it; [`estimator`]: one interface over all.
 
 pub mod color;
 pub mod course;
+pub mod estimator;
 pub mod eval;
 pub mod files;
+pub mod filter;
 pub mod frontend;
 pub mod log;
 pub mod motion;

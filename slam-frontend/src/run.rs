@@ -1,10 +1,11 @@
-//! One simulated run end to end, as the report and the tests use it.
+//! One simulated run end to end, as the report, the study and the tests use it.
 
+use crate::estimator::{Estimator, EstimatorBuilder};
 use crate::eval::{Report, evaluate, latency_ms};
 use crate::frontend::{FrontEndConfig, GraphSlam};
 use crate::sim::Simulation;
 
-/// Feeds a simulated log to a new front end and scores the result.
+/// Feeds a simulated log to a new graph front end and scores the result.
 pub fn run_and_score(sim: &Simulation, config: FrontEndConfig) -> (GraphSlam, Report) {
     let mut slam = GraphSlam::new(config);
     for record in &sim.log {
@@ -14,13 +15,23 @@ pub fn run_and_score(sim: &Simulation, config: FrontEndConfig) -> (GraphSlam, Re
     (slam, report)
 }
 
-/// Scores a front end's current output against the simulation's truth.
-pub fn score(sim: &Simulation, slam: &GraphSlam) -> Report {
+/// Feeds a simulated log to the estimator `builder` describes and scores it.
+pub fn run_estimator(sim: &Simulation, builder: &EstimatorBuilder) -> (Box<dyn Estimator>, Report) {
+    let mut slam = builder.build();
+    for record in &sim.log {
+        slam.process(record);
+    }
+    let report = score(sim, slam.as_ref());
+    (slam, report)
+}
+
+/// Scores an estimator's current output against the simulation's truth.
+pub fn score(sim: &Simulation, slam: &dyn Estimator) -> Report {
     let mut report = evaluate(
         &sim.truth_map,
         &slam.map(),
         &sim.truth,
-        slam.trajectory(),
+        &slam.trajectory(),
         &sim.truth_associations,
         &slam.associations(),
     );

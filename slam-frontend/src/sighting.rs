@@ -27,7 +27,7 @@ pub enum View {
 }
 
 /// Per-landmark bookkeeping shared by the estimators.
-#[derive(Clone, Debug)]
+#[derive(Clone, Debug, PartialEq)]
 pub struct Sighting {
     /// Colour votes, by [`Color::index`].
     pub votes: [u32; 5],
@@ -134,6 +134,14 @@ impl Sighting {
         self.last_seen = scan;
         self.last_seen_distance = distance;
         returned
+    }
+
+    /// After a loop closure: a returned landmark counts as in view again,
+    /// so the next lap must return it anew.
+    pub fn settle(&mut self) {
+        if self.view == View::Returned {
+            self.view = View::Visible;
+        }
     }
 
     /// Updates the counts and the view after a scan: `visible` says whether

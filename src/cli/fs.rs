@@ -3,11 +3,13 @@
 use super::write_output;
 use cairn::plot::{MapPlot, draw};
 use cairn::slam::course::Course;
+use cairn::slam::estimator::{EstimatorBuilder, EstimatorKind};
 use cairn::slam::eval::{Report, evaluate, latency_ms};
 use cairn::slam::files::{self, StampedPose};
 use cairn::slam::frontend::association::AssociationMethod;
-use cairn::slam::frontend::{FrontEndConfig, GraphSlam, MotionModel};
+use cairn::slam::frontend::{FrontEndConfig, MotionModel};
 use cairn::slam::log::{Log, to_jsonl};
+use cairn::slam::motion::DEFAULT_ALPHA;
 use cairn::slam::sim::{Preset, SimConfig, simulate};
 use cairn::slam::track::{map_from_csv, map_to_csv};
 use cairn::slam::trackgen::{TrackRules, random_track};
@@ -86,6 +88,27 @@ pub struct SlamArgs {
     /// Assumed detector noise preset (`standard` or `hard`).
     #[arg(long, default_value = "standard")]
     noise: String,
+    /// Estimator: graph (pose graph + per-landmark EKFs), ekf (EKF-SLAM),
+    /// fastslam1 or fastslam2.
+    #[arg(long, default_value = "graph")]
+    estimator: String,
+    /// Odometry noise model: velocity (speed and yaw-rate σ) or
+    /// rot-trans-rot (Thrun's δrot1, δtrans, δrot2 with α₁…α₄).
+    #[arg(long, default_value = "velocity")]
+    odometry_noise: String,
+    /// α₁,α₂,α₃,α₄ of the rot-trans-rot model.
+    #[arg(long, value_delimiter = ',', num_args = 4)]
+    alpha: Option<Vec<f64>>,
+    /// FastSLAM particles.
+    #[arg(long, default_value_t = 100)]
+    particles: usize,
+    /// FastSLAM sampler seed.
+    #[arg(long, default_value_t = 0)]
+    seed: u64,
+    /// Known correspondences (a truth_assoc.csv from `fs-sim`) instead of
+    /// data association; ekf, fastslam1 and fastslam2 only.
+    #[arg(long)]
+    known_assoc: Option<PathBuf>,
 }
 
 /// Options of `cairn fs-eval`.
@@ -209,20 +232,49 @@ pub fn run_slam(a: SlamArgs) -> Result<(), String> {
         }
     };
     config.localise_after_loop = !a.keep_mapping;
-    let mut slam = match &a.map_in {
-        Some(path) => {
-            let map =
-                map_from_csv(&read_text(path)?).map_err(|e| format!("{}: {e}", path.display()))?;
-            GraphSlam::with_map(config, &map)
+    config.rot_trans_rot = match (a.odometry_noise.as_str(), &a.alpha) {
+        ("velocity", None) => None,
+        ("rot-trans-rot", None) => Some(DEFAULT_ALPHA),
+        ("rot-trans-rot", Some(alpha)) if alpha.iter().all(|v| *v >= 0.0 && v.is_finite()) => {
+            Some([alpha[0], alpha[1], alpha[2], alpha[3]])
         }
-        None => GraphSlam::new(config),
+        ("velocity", Some(_)) => return Err("--alpha needs --odometry-noise rot-trans-rot".into()),
+        ("rot-trans-rot", Some(_)) => return Err("--alpha values must be finite and ≥ 0".into()),
+        _ => return Err("--odometry-noise must be velocity or rot-trans-rot".into()),
     };
+    let kind = EstimatorKind::by_name(&a.estimator)
+        .ok_or("--estimator must be graph, ekf, fastslam1 or fastslam2")?;
+    if a.particles == 0 {
+        return Err("--particles must be positive".into());
+    }
+    let map = match &a.map_in {
+        Some(path) => {
+            Some(map_from_csv(&read_text(path)?).map_err(|e| format!("{}: {e}", path.display()))?)
+        }
+        None => None,
+    };
+    let known = match &a.known_assoc {
+        Some(_) if kind == EstimatorKind::Graph => {
+            return Err("--known-assoc works with ekf, fastslam1 and fastslam2".into());
+        }
+        Some(path) => Some(
+            files::associations_from_csv(&read_text(path)?)
+                .map_err(|e| format!("{}: {e}", path.display()))?,
+        ),
+        None => None,
+    };
+    let mut builder = EstimatorBuilder::new(kind, config);
+    builder.particles = a.particles;
+    builder.seed = a.seed;
+    builder.map = map.as_deref();
+    builder.known = known.as_deref();
+    let mut slam = builder.build();
     for record in &log.records {
         slam.process(record);
     }
     // Everything is computed before anything is written, so a failure leaves no partial output.
     let map = map_to_csv(&slam.map());
-    let traj = files::trajectory_to_tum(slam.trajectory());
+    let traj = files::trajectory_to_tum(&slam.trajectory());
     let assoc = files::associations_to_csv(&slam.associations());
     let timing = serde_json::json!({
         "updates_s": slam.timing().updates,

@@ -10,17 +10,58 @@ use nalgebra::Vector2;
 /// Detections within this distance of a map cone count as agreeing (m).
 const INLIER: f64 = 0.5;
 
+/// Where the car stands on `map`: at `here` if most detections fall on map
+/// cones there, else at the best two-point alignment. Needs three agreeing
+/// detections (or half the scan, if more).
+pub fn place(map: &[(Vector2<f64>, Color)], detections: &[Detection], here: &SE2) -> Option<SE2> {
+    let agree = detections
+        .iter()
+        .filter(|d| {
+            let w = here.transform_point(&d.position);
+            map.iter().any(|(m, _)| (m - w).norm() < INLIER)
+        })
+        .count();
+    let needed = 3.max(detections.len() / 2);
+    if agree >= needed {
+        return Some(*here);
+    }
+    align(map, detections)
+        .filter(|(_, n)| *n >= needed)
+        .map(|(p, _)| p)
+}
+
+/// Place recognition at the end of a lap: the pose near `pose` that puts
+/// the scan on `old` landmarks (those that left the view long ago), when at
+/// least `min_inliers` detections (and half the scan) agree. Drift can put
+/// returning landmarks outside the association gates; this finds them
+/// geometrically.
+pub fn recognise(
+    old: &[(Vector2<f64>, Color)],
+    detections: &[Detection],
+    pose: &SE2,
+    min_inliers: usize,
+) -> Option<SE2> {
+    if old.len() < min_inliers {
+        return None;
+    }
+    let (aligned, inliers) = align(old, detections)?;
+    let shift = pose.between(&aligned);
+    (inliers >= min_inliers.max(detections.len() / 2)
+        && shift.t.norm() <= 8.0
+        && shift.theta.abs() <= 0.4)
+        .then_some(aligned)
+}
+
 /// The pose that puts most detections on map cones of a compatible colour,
 /// and how many agree.
 pub fn align(map: &[(Vector2<f64>, Color)], detections: &[Detection]) -> Option<(SE2, usize)> {
-    let compatible = |a: Color, b: Color| a == b || a == Color::Unknown || b == Color::Unknown;
     let count = |pose: &SE2| {
         detections
             .iter()
             .filter(|d| {
                 let w = pose.transform_point(&d.position);
                 map.iter()
-                    .any(|(m, c)| compatible(*c, d.color) && (m - w).norm() < INLIER)
+                    .any(|(m, c)| c.compatible(d.color) && (m - w).norm() < INLIER)
             })
             .count()
     };
@@ -37,11 +78,11 @@ pub fn align(map: &[(Vector2<f64>, Color)], detections: &[Detection]) -> Option<
                 continue;
             }
             for (p, cp) in map {
-                if !compatible(*cp, a.color) {
+                if !cp.compatible(a.color) {
                     continue;
                 }
                 for (q, cq) in map {
-                    if !compatible(*cq, b.color) || ((q - p).norm() - dab).abs() > 0.3 {
+                    if !cq.compatible(b.color) || ((q - p).norm() - dab).abs() > 0.3 {
                         continue;
                     }
                     let pose = from_two(a.position, b.position, *p, *q);

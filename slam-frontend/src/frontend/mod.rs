@@ -3,7 +3,7 @@
 //! closure → full optimisation on Cairn's solver, then localisation on the
 //! fixed map.
 
-mod align;
+pub(crate) mod align;
 pub mod association;
 
 use crate::color::Color;
@@ -470,23 +470,14 @@ impl GraphSlam {
                     && (lm.mean - self.pose.t).norm() < reach
             })
             .collect();
-        if old.len() < self.config.loop_min_returned {
-            return false;
-        }
         let map: Vec<(Vector2<f64>, Color)> = old
             .iter()
             .map(|&l| (self.landmarks[l].mean, self.landmarks[l].sighting.color()))
             .collect();
-        let Some((aligned, inliers)) = align::align(&map, cones) else {
+        let min_inliers = self.config.loop_min_returned;
+        let Some(aligned) = align::recognise(&map, cones, &self.pose, min_inliers) else {
             return false;
         };
-        let shift = self.pose.between(&aligned);
-        if inliers < self.config.loop_min_returned.max(cones.len() / 2)
-            || shift.t.norm() > 8.0
-            || shift.theta.abs() > 0.4
-        {
-            return false;
-        }
         let first = self.detections.len() - cones.len();
         for (i, d) in cones.iter().enumerate() {
             let w = aligned.transform_point(&d.position);
@@ -510,9 +501,7 @@ impl GraphSlam {
         true
     }
 
-    /// Places the car on the given map: the current pose if most detections
-    /// fall on map cones, else the best two-point alignment. Needs three
-    /// agreeing detections.
+    /// Places the car on the given map ([`align::place`]).
     fn align_to_map(&mut self, cones: &[Detection]) -> bool {
         let map: Vec<(Vector2<f64>, Color)> = self
             .landmarks
@@ -520,23 +509,7 @@ impl GraphSlam {
             .map(|l| (l.mean, l.sighting.color()))
             .collect();
         let here = self.pose.compose(&self.motion.pending());
-        let agree = |pose: &SE2| {
-            cones
-                .iter()
-                .filter(|d| {
-                    let w = pose.transform_point(&d.position);
-                    map.iter().any(|(m, _)| (m - w).norm() < 0.5)
-                })
-                .count()
-        };
-        let needed = 3.max(cones.len() / 2);
-        let found = if agree(&here) >= needed {
-            Some(here)
-        } else {
-            align::align(&map, cones)
-                .filter(|(_, n)| *n >= needed)
-                .map(|(p, _)| p)
-        };
+        let found = align::place(&map, cones, &here);
         let Some(pose) = found else { return false };
         self.pose = pose;
         self.pose_cov = Matrix3::from_diagonal(&nalgebra::Vector3::new(0.25, 0.25, 0.05));
@@ -761,9 +734,7 @@ impl GraphSlam {
             .loop_closures
             .push(start.elapsed().as_secs_f64());
         for lm in &mut self.landmarks {
-            if lm.sighting.view == View::Returned {
-                lm.sighting.view = View::Visible;
-            }
+            lm.sighting.settle();
         }
         if self.config.localise_after_loop {
             self.mode = Mode::Localising;
@@ -851,9 +822,7 @@ impl GraphSlam {
                 }
                 let (la, lb) = (&self.landmarks[a], &self.landmarks[b]);
                 if (la.mean - lb.mean).norm() < MERGE_RADIUS
-                    && (la.sighting.color() == lb.sighting.color()
-                        || la.sighting.color() == Color::Unknown
-                        || lb.sighting.color() == Color::Unknown)
+                    && la.sighting.color().compatible(lb.sighting.color())
                 {
                     let (keep, drop) = if la.sighting.seen >= lb.sighting.seen {
                         (a, b)

@@ -1,0 +1,211 @@
+//! One interface over the estimators: the graph front end
+//! ([`GraphSlam`]), EKF-SLAM ([`EkfSlam`]) and FastSLAM 1.0/2.0
+//! ([`FastSlam`]). They read the same log records and give the same outputs,
+//! so the command line, the evaluation and the study treat them alike.
+
+use crate::files::{Association, StampedPose};
+use crate::filter::ekf::EkfSlam;
+use crate::filter::fastslam::{FastSlam, ParticleConfig, Version};
+use crate::frontend::{FrontEndConfig, GraphSlam, Mode, Timing};
+use crate::log::Record;
+use crate::track::Cone;
+
+/// A SLAM estimator fed one log record at a time.
+pub trait Estimator {
+    /// Processes one log record.
+    fn process(&mut self, record: &Record);
+    /// The map: confirmed landmarks with their covariances.
+    fn map(&self) -> Vec<Cone>;
+    /// One pose per scan.
+    fn trajectory(&self) -> Vec<StampedPose>;
+    /// For every detection, its row in [`Estimator::map`] (or none).
+    fn associations(&self) -> Vec<Association>;
+    /// Update and loop-closure times.
+    fn timing(&self) -> &Timing;
+    /// Loop closures detected so far.
+    fn loop_closures(&self) -> usize;
+    /// Mapping or localising.
+    fn mode(&self) -> Mode;
+}
+
+/// The estimators, by command-line name.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum EstimatorKind {
+    /// Pose/landmark graph with per-landmark EKFs and full optimisation at
+    /// loop closure.
+    Graph,
+    /// Joint EKF over pose and landmarks.
+    Ekf,
+    /// FastSLAM 1.0.
+    FastSlam1,
+    /// FastSLAM 2.0.
+    FastSlam2,
+}
+
+impl EstimatorKind {
+    /// Every estimator.
+    pub const ALL: [EstimatorKind; 4] = [
+        EstimatorKind::Graph,
+        EstimatorKind::Ekf,
+        EstimatorKind::FastSlam1,
+        EstimatorKind::FastSlam2,
+    ];
+
+    /// The command-line name.
+    pub fn name(self) -> &'static str {
+        match self {
+            EstimatorKind::Graph => "graph",
+            EstimatorKind::Ekf => "ekf",
+            EstimatorKind::FastSlam1 => "fastslam1",
+            EstimatorKind::FastSlam2 => "fastslam2",
+        }
+    }
+
+    /// The estimator with this command-line name.
+    pub fn by_name(name: &str) -> Option<Self> {
+        Self::ALL.into_iter().find(|k| k.name() == name)
+    }
+}
+
+/// How to build an estimator: which one, its settings, and optionally a
+/// map to localise on and known correspondences.
+#[derive(Clone, Debug)]
+pub struct EstimatorBuilder<'a> {
+    /// Which estimator.
+    pub kind: EstimatorKind,
+    /// Shared front-end settings.
+    pub config: FrontEndConfig,
+    /// FastSLAM particles.
+    pub particles: usize,
+    /// FastSLAM sampler seed.
+    pub seed: u64,
+    /// Localise on this map from the first scan.
+    pub map: Option<&'a [Cone]>,
+    /// Known correspondences (filters only; the graph ignores them).
+    pub known: Option<&'a [Association]>,
+}
+
+impl<'a> EstimatorBuilder<'a> {
+    /// Defaults: 100 particles, seed 0, mapping, unknown correspondences.
+    pub fn new(kind: EstimatorKind, config: FrontEndConfig) -> Self {
+        Self {
+            kind,
+            config,
+            particles: 100,
+            seed: 0,
+            map: None,
+            known: None,
+        }
+    }
+
+    /// The estimator.
+    pub fn build(&self) -> Box<dyn Estimator> {
+        let config = self.config.clone();
+        match self.kind {
+            EstimatorKind::Graph => Box::new(match self.map {
+                Some(map) => GraphSlam::with_map(config, map),
+                None => GraphSlam::new(config),
+            }),
+            EstimatorKind::Ekf => {
+                let ekf = match self.map {
+                    Some(map) => EkfSlam::with_map(config, map),
+                    None => EkfSlam::new(config),
+                };
+                Box::new(match self.known {
+                    Some(truth) => ekf.with_known(truth),
+                    None => ekf,
+                })
+            }
+            EstimatorKind::FastSlam1 | EstimatorKind::FastSlam2 => {
+                let version = if self.kind == EstimatorKind::FastSlam1 {
+                    Version::One
+                } else {
+                    Version::Two
+                };
+                let mut settings = ParticleConfig::new(version);
+                settings.particles = self.particles;
+                settings.seed = self.seed;
+                let slam = match self.map {
+                    Some(map) => FastSlam::with_map(config, settings, map),
+                    None => FastSlam::new(config, settings),
+                };
+                Box::new(match self.known {
+                    Some(truth) => slam.with_known(truth),
+                    None => slam,
+                })
+            }
+        }
+    }
+}
+
+impl Estimator for GraphSlam {
+    fn process(&mut self, record: &Record) {
+        GraphSlam::process(self, record)
+    }
+    fn map(&self) -> Vec<Cone> {
+        GraphSlam::map(self)
+    }
+    fn trajectory(&self) -> Vec<StampedPose> {
+        GraphSlam::trajectory(self).to_vec()
+    }
+    fn associations(&self) -> Vec<Association> {
+        GraphSlam::associations(self)
+    }
+    fn timing(&self) -> &Timing {
+        GraphSlam::timing(self)
+    }
+    fn loop_closures(&self) -> usize {
+        GraphSlam::loop_closures(self)
+    }
+    fn mode(&self) -> Mode {
+        GraphSlam::mode(self)
+    }
+}
+
+impl Estimator for EkfSlam {
+    fn process(&mut self, record: &Record) {
+        EkfSlam::process(self, record)
+    }
+    fn map(&self) -> Vec<Cone> {
+        EkfSlam::map(self)
+    }
+    fn trajectory(&self) -> Vec<StampedPose> {
+        EkfSlam::trajectory(self).to_vec()
+    }
+    fn associations(&self) -> Vec<Association> {
+        EkfSlam::associations(self)
+    }
+    fn timing(&self) -> &Timing {
+        EkfSlam::timing(self)
+    }
+    fn loop_closures(&self) -> usize {
+        EkfSlam::loop_closures(self)
+    }
+    fn mode(&self) -> Mode {
+        EkfSlam::mode(self)
+    }
+}
+
+impl Estimator for FastSlam {
+    fn process(&mut self, record: &Record) {
+        FastSlam::process(self, record)
+    }
+    fn map(&self) -> Vec<Cone> {
+        FastSlam::map(self)
+    }
+    fn trajectory(&self) -> Vec<StampedPose> {
+        FastSlam::trajectory(self)
+    }
+    fn associations(&self) -> Vec<Association> {
+        FastSlam::associations(self)
+    }
+    fn timing(&self) -> &Timing {
+        FastSlam::timing(self)
+    }
+    fn loop_closures(&self) -> usize {
+        FastSlam::loop_closures(self)
+    }
+    fn mode(&self) -> Mode {
+        FastSlam::mode(self)
+    }
+}

@@ -1,0 +1,506 @@
+//! EKF-SLAM: one Gaussian over the pose and every landmark, with the full
+//! covariance (Thrun et al., Probabilistic Robotics, 10.2). Each prediction
+//! costs O(n) and each range-bearing update O(n²) in the state size n.
+
+use super::{Choice, Run, candidates, clear_of, landmark_from, measurement, predict};
+use crate::files::{Association, StampedPose};
+use crate::frontend::{FrontEndConfig, Mode, Timing};
+use crate::log::{Detection, Record};
+use crate::motion::compose_jacobians;
+use crate::sighting::{Sighting, in_view};
+use crate::track::Cone;
+use cairn_core::SE2;
+use cairn_core::se2::normalize_angle;
+use nalgebra::{DMatrix, DVector, Matrix2, Matrix3, SMatrix, Vector2, Vector3};
+use std::time::Instant;
+
+/// State entries of the pose (x, y, θ).
+const POSE: usize = 3;
+
+#[derive(Clone, Debug)]
+struct Landmark {
+    /// Index of the landmark's x in the state; `None` once removed.
+    slot: Option<usize>,
+    sighting: Sighting,
+}
+
+/// The EKF-SLAM estimator. Feed it records with [`EkfSlam::process`].
+#[derive(Clone, Debug)]
+pub struct EkfSlam {
+    run: Run,
+    /// Mean; the first `dim` entries are live, the rest is spare capacity.
+    x: DVector<f64>,
+    /// Covariance, live in its leading `dim` × `dim` block.
+    p: DMatrix<f64>,
+    dim: usize,
+    landmarks: Vec<Landmark>,
+    /// Landmark owning each slot, by (slot − 3) / 2.
+    owners: Vec<usize>,
+    poses: Vec<StampedPose>,
+    detections: Vec<(usize, usize, Option<usize>)>,
+    /// P Hᵀ and the gain of the current update (capacity × 2).
+    pht: DMatrix<f64>,
+    gain: DMatrix<f64>,
+}
+
+impl EkfSlam {
+    /// A filter that starts mapping at the origin (or the log's `start`).
+    pub fn new(config: FrontEndConfig) -> Self {
+        let capacity = POSE + 2 * 64;
+        let mut p = DMatrix::zeros(capacity, capacity);
+        for i in 0..POSE {
+            p[(i, i)] = 1e-9;
+        }
+        Self {
+            run: Run::new(config),
+            x: DVector::zeros(capacity),
+            p,
+            dim: POSE,
+            landmarks: Vec::new(),
+            owners: Vec::new(),
+            poses: Vec::new(),
+            detections: Vec::new(),
+            pht: DMatrix::zeros(capacity, 2),
+            gain: DMatrix::zeros(capacity, 2),
+        }
+    }
+
+    /// A filter that localises on `map` (its landmarks fixed, their
+    /// covariances kept), placed by aligning the first scans to it.
+    pub fn with_map(config: FrontEndConfig, map: &[Cone]) -> Self {
+        let mut ekf = Self::new(config);
+        for c in map {
+            let cov = if c.covariance.determinant() > 0.0 {
+                c.covariance
+            } else {
+                Matrix2::identity() * 1e-4
+            };
+            let slot = ekf.push_slot(ekf.landmarks.len());
+            ekf.x.fixed_rows_mut::<2>(slot).copy_from(&c.position);
+            ekf.p.fixed_view_mut::<2, 2>(slot, slot).copy_from(&cov);
+            ekf.landmarks.push(Landmark {
+                slot: Some(slot),
+                sighting: Sighting::known(c.color),
+            });
+        }
+        ekf.run.start_on(map);
+        ekf
+    }
+
+    /// Known correspondences: every detection is associated as the truth
+    /// file says (landmark column = true cone), instead of by a method.
+    pub fn with_known(mut self, truth: &[Association]) -> Self {
+        self.run.set_known(truth);
+        self
+    }
+
+    /// Processes one log record.
+    pub fn process(&mut self, record: &Record) {
+        if let Some((t, cones)) = self.run.next_scan(record) {
+            let start = Instant::now();
+            self.update(t, cones);
+            self.run.timing.updates.push(start.elapsed().as_secs_f64());
+        }
+    }
+
+    /// The current pose estimate.
+    pub fn pose(&self) -> SE2 {
+        SE2::from_vector(&self.x.fixed_rows::<3>(0).into_owned())
+    }
+
+    /// The current pose covariance.
+    pub fn pose_cov(&self) -> Matrix3<f64> {
+        self.p.fixed_view::<3, 3>(0, 0).into_owned()
+    }
+
+    /// Mapping or localising.
+    pub fn mode(&self) -> Mode {
+        self.run.mode
+    }
+
+    /// Loop closures detected so far.
+    pub fn loop_closures(&self) -> usize {
+        self.run.loop_closures
+    }
+
+    /// Update times.
+    pub fn timing(&self) -> &Timing {
+        &self.run.timing
+    }
+
+    /// The size of the joint state (3 + 2 per live landmark).
+    pub fn state_size(&self) -> usize {
+        self.dim
+    }
+
+    fn update(&mut self, t: f64, cones: &[Detection]) {
+        let scan = self.run.scans;
+        self.run.scans += 1;
+        if scan == 0 {
+            self.x
+                .fixed_rows_mut::<3>(0)
+                .copy_from(&self.run.start.to_vector());
+        }
+        self.predict_motion();
+        match self.run.place(&self.pose(), cones) {
+            Err(()) => {
+                // Not placed on the given map yet: nothing is associated.
+                self.detections
+                    .extend((0..cones.len()).map(|i| (scan, i, None)));
+                self.poses.push(StampedPose {
+                    t,
+                    pose: self.pose(),
+                });
+                return;
+            }
+            Ok(Some(pose)) => {
+                self.x.fixed_rows_mut::<3>(0).copy_from(&pose.to_vector());
+                self.p
+                    .fixed_view_mut::<3, 3>(0, 0)
+                    .copy_from(&Matrix3::from_diagonal(&Vector3::new(0.25, 0.25, 0.05)));
+            }
+            Ok(None) => {}
+        }
+
+        let measurements: Vec<_> = cones
+            .iter()
+            .map(|d| measurement(&self.run.config, d))
+            .collect();
+        let choices = self.choose(scan, cones, &measurements);
+        let mut associated = vec![false; self.landmarks.len()];
+        let mut returned = 0;
+        for (i, d) in cones.iter().enumerate() {
+            let (z, r) = &measurements[i];
+            let landmark = match choices[i] {
+                Choice::Landmark(l) => {
+                    let ok = match (self.run.mode, self.landmarks[l].slot) {
+                        (Mode::Mapping, Some(slot)) => self.update_joint(slot, z, r),
+                        (Mode::Localising, Some(slot)) => self.update_pose(slot, z, r),
+                        (_, None) => false,
+                    };
+                    ok.then_some(l)
+                }
+                Choice::New => Some(self.add_landmark(z, r, d, scan)),
+                Choice::Reject => None,
+            };
+            self.detections.push((scan, i, landmark));
+            let Some(l) = landmark else { continue };
+            self.run.remember(scan, i, d, l);
+            if l < associated.len() {
+                associated[l] = true;
+            }
+            let (distance, heading) = (self.run.motion.distance(), self.x[2]);
+            let sighting = &mut self.landmarks[l].sighting;
+            if self.run.mode == Mode::Mapping {
+                sighting.count(d.color, self.run.config.confirm_after);
+            }
+            if sighting.revisit(scan, distance, heading) {
+                returned += 1;
+            }
+        }
+        self.symmetrise();
+        let pose = self.pose();
+
+        self.count_misses(&pose, &associated, scan);
+        if self.run.lap_closed(&pose, returned) {
+            self.run.close_loop();
+            for lm in &mut self.landmarks {
+                lm.sighting.settle();
+            }
+            if self.run.mode == Mode::Localising {
+                self.freeze_map();
+            }
+        }
+        self.poses.push(StampedPose { t, pose });
+    }
+
+    /// Moves the pose by the odometry since the last scan:
+    /// P_rr ← Jₚ P_rr Jₚᵀ + J_d Q J_dᵀ and P_rm ← Jₚ P_rm.
+    fn predict_motion(&mut self) {
+        let (delta, q) = self.run.motion.take();
+        let pose = self.pose();
+        let (j_pose, j_delta) = compose_jacobians(&pose, &delta);
+        let n = self.dim;
+        let p_rr = self.pose_cov();
+        let p_rr = j_pose * p_rr * j_pose.transpose() + j_delta * q * j_delta.transpose();
+        self.p.fixed_view_mut::<3, 3>(0, 0).copy_from(&p_rr);
+        if n > POSE {
+            let cross = j_pose * self.p.view((0, POSE), (3, n - POSE));
+            self.p.view_mut((0, POSE), (3, n - POSE)).copy_from(&cross);
+            self.p
+                .view_mut((POSE, 0), (n - POSE, 3))
+                .copy_from(&cross.transpose());
+        }
+        self.x
+            .fixed_rows_mut::<3>(0)
+            .copy_from(&pose.compose(&delta).to_vector());
+    }
+
+    /// The association of every detection of the scan.
+    fn choose(
+        &self,
+        scan: usize,
+        cones: &[Detection],
+        measurements: &[(Vector2<f64>, Matrix2<f64>)],
+    ) -> Vec<Choice> {
+        let pose = self.pose();
+        let pose_cov = self.pose_cov();
+        let localising = self.run.mode == Mode::Localising;
+        let live = self.landmarks.iter().enumerate().filter_map(|(l, lm)| {
+            let slot = lm.slot?;
+            (!localising || lm.sighting.confirmed).then(|| {
+                let view = super::Landmark {
+                    mean: self.x.fixed_rows::<2>(slot).into_owned(),
+                    cov: self.p.fixed_view::<2, 2>(slot, slot).into_owned(),
+                    cross: self.p.fixed_view::<3, 2>(0, slot).into_owned(),
+                    sighting: &lm.sighting,
+                };
+                (l, view)
+            })
+        });
+        let (candidates, nearest) = candidates(
+            &self.run.config,
+            &pose,
+            &pose_cov,
+            measurements,
+            cones,
+            live,
+        );
+        let tracked = self
+            .run
+            .tracked(cones, |l| self.landmarks[l].slot.is_some());
+        let means: Vec<Vector2<f64>> = self
+            .owners
+            .iter()
+            .enumerate()
+            .map(|(k, _)| self.x.fixed_rows::<2>(POSE + 2 * k).into_owned())
+            .collect();
+        self.run
+            .choose(scan, &candidates, &nearest, &pose_cov, &tracked, |i| {
+                clear_of(&pose.transform_point(&cones[i].position), means.iter())
+            })
+    }
+
+    /// The joint EKF update with one range-bearing measurement of the
+    /// landmark at `slot`; H is non-zero in the pose and landmark columns
+    /// only, so P Hᵀ takes 5 columns of P and the update is a rank-2
+    /// downdate. False when the prediction is degenerate.
+    fn update_joint(&mut self, slot: usize, z: &Vector2<f64>, r: &Matrix2<f64>) -> bool {
+        let n = self.dim;
+        let pose = self.pose();
+        let m = self.x.fixed_rows::<2>(slot).into_owned();
+        let Some(pred) = predict(&pose, &m) else {
+            return false;
+        };
+        let nu = super::innovation(z, &pred.z);
+        let p = self.p.view((0, 0), (n, n));
+        let mut pht = self.pht.view_mut((0, 0), (n, 2));
+        pht.gemm(1.0, &p.columns(0, POSE), &pred.h_pose.transpose(), 0.0);
+        pht.gemm(1.0, &p.columns(slot, 2), &pred.h_landmark.transpose(), 1.0);
+        let s =
+            pred.h_pose * pht.fixed_rows::<3>(0) + pred.h_landmark * pht.fixed_rows::<2>(slot) + r;
+        let Some(s_inv) = s.try_inverse() else {
+            return false;
+        };
+        let mut gain = self.gain.view_mut((0, 0), (n, 2));
+        gain.gemm(1.0, &pht, &s_inv, 0.0);
+        self.x.rows_mut(0, n).gemv(1.0, &gain, &nu, 1.0);
+        self.x[2] = normalize_angle(self.x[2]);
+        // P ← P − K (P Hᵀ)ᵀ, one column pair at a time.
+        let mut p = self.p.view_mut((0, 0), (n, n));
+        for c in 0..2 {
+            p.ger(-1.0, &gain.column(c), &pht.column(c), 1.0);
+        }
+        true
+    }
+
+    /// Localisation on the fixed map: only the pose is updated, with the
+    /// landmark's own uncertainty added to the measurement noise.
+    fn update_pose(&mut self, slot: usize, z: &Vector2<f64>, r: &Matrix2<f64>) -> bool {
+        let pose = self.pose();
+        let m = self.x.fixed_rows::<2>(slot).into_owned();
+        let Some(pred) = predict(&pose, &m) else {
+            return false;
+        };
+        let nu = super::innovation(z, &pred.z);
+        let p_rr = self.pose_cov();
+        let p_mm = self.p.fixed_view::<2, 2>(slot, slot).into_owned();
+        let pht: SMatrix<f64, 3, 2> = p_rr * pred.h_pose.transpose();
+        let s = pred.h_pose * pht + pred.h_landmark * p_mm * pred.h_landmark.transpose() + r;
+        let Some(s_inv) = s.try_inverse() else {
+            return false;
+        };
+        let k = pht * s_inv;
+        let x = pose.to_vector() + k * nu;
+        self.x.fixed_rows_mut::<3>(0).copy_from(&x);
+        self.x[2] = normalize_angle(self.x[2]);
+        let p_rr = p_rr - k * pht.transpose();
+        self.p
+            .fixed_view_mut::<3, 3>(0, 0)
+            .copy_from(&(0.5 * (p_rr + p_rr.transpose())));
+        true
+    }
+
+    /// Appends a landmark seen as `z` (covariance `r`) from the current
+    /// pose, with its cross-covariances through the inverse measurement
+    /// model's Jacobians. Returns its index.
+    fn add_landmark(
+        &mut self,
+        z: &Vector2<f64>,
+        r: &Matrix2<f64>,
+        d: &Detection,
+        scan: usize,
+    ) -> usize {
+        let pose = self.pose();
+        let (m, j_pose, j_z) = landmark_from(&pose, z);
+        let l = self.landmarks.len();
+        let n = self.dim;
+        let slot = self.push_slot(l);
+        // Cross-covariance with everything: Jₚ P[0..3, :].
+        let cross = j_pose * self.p.view((0, 0), (3, n));
+        self.p.view_mut((slot, 0), (2, n)).copy_from(&cross);
+        self.p
+            .view_mut((0, slot), (n, 2))
+            .copy_from(&cross.transpose());
+        let p_rr = self.pose_cov();
+        let p_mm = j_pose * p_rr * j_pose.transpose() + j_z * r * j_z.transpose();
+        self.p.fixed_view_mut::<2, 2>(slot, slot).copy_from(&p_mm);
+        self.x.fixed_rows_mut::<2>(slot).copy_from(&m);
+        let distance = self.run.motion.distance();
+        self.landmarks.push(Landmark {
+            slot: Some(slot),
+            sighting: Sighting::new(d.color, scan, distance, pose.theta),
+        });
+        l
+    }
+
+    /// Two zeroed state entries for landmark `l`, growing the storage by
+    /// doubling. Returns the slot.
+    fn push_slot(&mut self, l: usize) -> usize {
+        let slot = self.dim;
+        if slot + 2 > self.x.len() {
+            let capacity = 2 * self.x.len();
+            let mut p = DMatrix::zeros(capacity, capacity);
+            p.view_mut((0, 0), (slot, slot))
+                .copy_from(&self.p.view((0, 0), (slot, slot)));
+            self.p = p;
+            self.x.resize_vertically_mut(capacity, 0.0);
+            self.pht = DMatrix::zeros(capacity, 2);
+            self.gain = DMatrix::zeros(capacity, 2);
+        }
+        self.x.fixed_rows_mut::<2>(slot).fill(0.0);
+        self.p.view_mut((slot, 0), (2, slot + 2)).fill(0.0);
+        self.p.view_mut((0, slot), (slot + 2, 2)).fill(0.0);
+        self.owners.push(l);
+        self.dim += 2;
+        slot
+    }
+
+    /// Drops landmark `l` from the state: the last slot moves into its place.
+    fn remove(&mut self, l: usize) {
+        let Some(slot) = self.landmarks[l].slot.take() else {
+            return;
+        };
+        let last = self.dim - 2;
+        if slot != last {
+            for k in 0..2 {
+                self.x.swap_rows(slot + k, last + k);
+                self.p.swap_rows(slot + k, last + k);
+                self.p.swap_columns(slot + k, last + k);
+            }
+            let moved = self.owners[(last - POSE) / 2];
+            self.owners[(slot - POSE) / 2] = moved;
+            self.landmarks[moved].slot = Some(slot);
+        }
+        self.owners.pop();
+        self.dim -= 2;
+    }
+
+    /// Counts misses of landmarks well inside the field of view and drops
+    /// tentative ones missed more often than seen.
+    fn count_misses(&mut self, pose: &SE2, associated: &[bool], scan: usize) {
+        let inverse = pose.inverse();
+        let mapping = self.run.mode == Mode::Mapping;
+        let distance = self.run.motion.distance();
+        let mut dropped = Vec::new();
+        for (l, lm) in self.landmarks.iter_mut().enumerate() {
+            let Some(slot) = lm.slot else { continue };
+            let mean = self.x.fixed_rows::<2>(slot).into_owned();
+            let visible = in_view(&self.run.config, &inverse, &mean);
+            let seen = associated.get(l).copied().unwrap_or(true);
+            if lm
+                .sighting
+                .after_scan(visible, seen, mapping, scan, distance)
+            {
+                dropped.push(l);
+            }
+        }
+        for l in dropped {
+            self.remove(l);
+        }
+    }
+
+    /// Localisation from here on: the map is fixed, so the pose forgets its
+    /// correlation with it.
+    fn freeze_map(&mut self) {
+        let n = self.dim;
+        self.p.view_mut((0, POSE), (POSE, n - POSE)).fill(0.0);
+        self.p.view_mut((POSE, 0), (n - POSE, POSE)).fill(0.0);
+    }
+
+    /// Keeps P symmetric against round-off from the one-sided downdates.
+    fn symmetrise(&mut self) {
+        let n = self.dim;
+        for i in 0..n {
+            for j in 0..i {
+                let v = 0.5 * (self.p[(i, j)] + self.p[(j, i)]);
+                self.p[(i, j)] = v;
+                self.p[(j, i)] = v;
+            }
+        }
+    }
+
+    /// Live, confirmed landmarks in index order.
+    fn map_rows(&self) -> Vec<usize> {
+        (0..self.landmarks.len())
+            .filter(|&l| self.landmarks[l].slot.is_some() && self.landmarks[l].sighting.confirmed)
+            .collect()
+    }
+
+    /// The map: confirmed landmarks with their marginal covariances.
+    pub fn map(&self) -> Vec<Cone> {
+        self.map_rows()
+            .into_iter()
+            .map(|l| {
+                let lm = &self.landmarks[l];
+                let slot = lm.slot.unwrap_or(0);
+                Cone {
+                    position: self.x.fixed_rows::<2>(slot).into_owned(),
+                    color: lm.sighting.color(),
+                    covariance: self.p.fixed_view::<2, 2>(slot, slot).into_owned(),
+                }
+            })
+            .collect()
+    }
+
+    /// The pose after every scan's update.
+    pub fn trajectory(&self) -> &[StampedPose] {
+        &self.poses
+    }
+
+    /// For every detection, its row in [`EkfSlam::map`] (or none).
+    pub fn associations(&self) -> Vec<Association> {
+        let mut row = vec![None; self.landmarks.len()];
+        for (k, l) in self.map_rows().into_iter().enumerate() {
+            row[l] = Some(k);
+        }
+        self.detections
+            .iter()
+            .map(|&(scan, det, l)| Association {
+                scan,
+                det,
+                landmark: l.and_then(|l| row[l]),
+            })
+            .collect()
+    }
+}

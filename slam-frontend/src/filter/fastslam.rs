@@ -1,0 +1,703 @@
+//! FastSLAM 1.0 and 2.0 (Montemerlo et al. 2002, 2003): a particle per path
+//! hypothesis, each with its own map of 2×2 landmark EKFs and its own data
+//! association. 1.0 samples the pose from the motion model; 2.0 folds the
+//! scan's matched observations into the proposal it samples from.
+
+use super::{Choice, Run, candidates, clear_of, innovation, landmark_from, measurement, predict};
+use crate::color::Color;
+use crate::files::{Association, StampedPose};
+use crate::frontend::align;
+use crate::frontend::{FrontEndConfig, Mode, Timing};
+use crate::log::{Detection, Record};
+use crate::motion::compose_jacobians;
+use crate::sighting::{START_AREA, Sighting, View, in_view};
+use crate::track::Cone;
+use cairn_core::SE2;
+use cairn_core::se2::normalize_angle;
+use nalgebra::{Matrix2, Matrix3, SMatrix, Vector2, Vector3};
+use rand::SeedableRng;
+use rand::rngs::StdRng;
+use rand_distr::{Distribution, StandardNormal};
+use std::rc::Rc;
+use std::time::Instant;
+
+/// FastSLAM 1.0 or 2.0.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Version {
+    /// Poses sampled from the motion model; weights from the observations.
+    One,
+    /// Poses sampled from the motion model conditioned on the observations.
+    Two,
+}
+
+/// Settings of the particle filter.
+#[derive(Clone, Copy, Debug)]
+pub struct ParticleConfig {
+    /// 1.0 or 2.0.
+    pub version: Version,
+    /// Number of particles.
+    pub particles: usize,
+    /// Resample when the effective sample size drops below this fraction
+    /// of the particle count.
+    pub resample_below: f64,
+    /// Log-likelihood of a detection that starts a new landmark or is
+    /// rejected, relative to a perfect match (the new-landmark weight).
+    pub new_landmark_log_weight: f64,
+    /// Log-likelihood of a confirmed landmark inside the field of view that
+    /// was not seen (ln of the miss probability).
+    pub missed_log_weight: f64,
+    /// Seed of the sampler.
+    pub seed: u64,
+}
+
+impl ParticleConfig {
+    /// The defaults for a version: 100 particles, resampling below half.
+    pub fn new(version: Version) -> Self {
+        Self {
+            version,
+            particles: 100,
+            resample_below: 0.5,
+            // As likely as a match at the 99.9% χ² boundary (13.8 / 2).
+            new_landmark_log_weight: -6.9,
+            // Detection probability ≈ 0.9.
+            missed_log_weight: (0.1f64).ln(),
+            seed: 0,
+        }
+    }
+}
+
+/// A landmark this close to an older one of a compatible colour after a
+/// loop closure is the same cone (m).
+const DUPLICATE_RADIUS: f64 = 0.7;
+
+#[derive(Clone, Debug)]
+struct Landmark {
+    mean: Vector2<f64>,
+    cov: Matrix2<f64>,
+    removed: bool,
+    sighting: Sighting,
+}
+
+/// One step of a particle's path: its pose after a scan and what each
+/// detection was associated with. Steps are shared between the particles
+/// that descend from the same ancestor.
+#[derive(Debug)]
+struct Step {
+    scan: usize,
+    pose: StampedPose,
+    choices: Box<[Option<u32>]>,
+    parent: Option<Rc<Step>>,
+}
+
+impl Drop for Step {
+    /// Unlinks the chain iteratively: a recursive drop of a long path would
+    /// overflow the stack.
+    fn drop(&mut self) {
+        let mut next = self.parent.take();
+        while let Some(step) = next {
+            match Rc::try_unwrap(step) {
+                Ok(mut step) => next = step.parent.take(),
+                Err(_) => break,
+            }
+        }
+    }
+}
+
+#[derive(Clone, Debug)]
+struct Particle {
+    pose: SE2,
+    log_weight: f64,
+    /// Landmarks shared with other particles until one of them changes.
+    map: Vec<Rc<Landmark>>,
+    path: Option<Rc<Step>>,
+    /// Landmarks that came back at the start of a lap in the last scan.
+    returned: usize,
+}
+
+/// The FastSLAM estimator. Feed it records with [`FastSlam::process`].
+#[derive(Clone, Debug)]
+pub struct FastSlam {
+    run: Run,
+    particles: Vec<Particle>,
+    settings: ParticleConfig,
+    rng: StdRng,
+    resamplings: usize,
+}
+
+impl FastSlam {
+    /// A particle filter that starts mapping at the origin (or the log's `start`).
+    pub fn new(config: FrontEndConfig, settings: ParticleConfig) -> Self {
+        let particle = Particle {
+            pose: SE2::identity(),
+            log_weight: 0.0,
+            map: Vec::new(),
+            path: None,
+            returned: 0,
+        };
+        Self {
+            run: Run::new(config),
+            particles: vec![particle; settings.particles.max(1)],
+            rng: StdRng::seed_from_u64(settings.seed),
+            settings,
+            resamplings: 0,
+        }
+    }
+
+    /// A particle filter that localises on `map`, placed by aligning the
+    /// first scans to it.
+    pub fn with_map(config: FrontEndConfig, settings: ParticleConfig, map: &[Cone]) -> Self {
+        let mut slam = Self::new(config, settings);
+        let landmarks: Vec<Rc<Landmark>> = map
+            .iter()
+            .map(|c| {
+                Rc::new(Landmark {
+                    mean: c.position,
+                    cov: if c.covariance.determinant() > 0.0 {
+                        c.covariance
+                    } else {
+                        Matrix2::identity() * 1e-4
+                    },
+                    removed: false,
+                    sighting: Sighting::known(c.color),
+                })
+            })
+            .collect();
+        for p in &mut slam.particles {
+            p.map = landmarks.clone();
+        }
+        slam.run.start_on(map);
+        slam
+    }
+
+    /// Known correspondences from the truth file instead of a method.
+    pub fn with_known(mut self, truth: &[Association]) -> Self {
+        self.run.set_known(truth);
+        self
+    }
+
+    /// Processes one log record.
+    pub fn process(&mut self, record: &Record) {
+        if let Some((t, cones)) = self.run.next_scan(record) {
+            let start = Instant::now();
+            self.update(t, cones);
+            self.run.timing.updates.push(start.elapsed().as_secs_f64());
+        }
+    }
+
+    /// Mapping or localising.
+    pub fn mode(&self) -> Mode {
+        self.run.mode
+    }
+
+    /// Loop closures detected so far.
+    pub fn loop_closures(&self) -> usize {
+        self.run.loop_closures
+    }
+
+    /// Update times; a loop closure's is the time to hand the best map to
+    /// every particle.
+    pub fn timing(&self) -> &Timing {
+        &self.run.timing
+    }
+
+    /// Times the particles were resampled.
+    pub fn resamplings(&self) -> usize {
+        self.resamplings
+    }
+
+    /// The pose of the most likely particle.
+    pub fn pose(&self) -> SE2 {
+        self.best().pose
+    }
+
+    fn best(&self) -> &Particle {
+        self.particles
+            .iter()
+            .max_by(|a, b| a.log_weight.total_cmp(&b.log_weight))
+            .unwrap_or(&self.particles[0])
+    }
+
+    fn update(&mut self, t: f64, cones: &[Detection]) {
+        let scan = self.run.scans;
+        self.run.scans += 1;
+        let (delta, q) = self.run.motion.take();
+        if scan == 0 {
+            for p in &mut self.particles {
+                p.pose = self.run.start;
+            }
+        }
+        let here = self.best().pose.compose(&delta);
+        match self.run.place(&here, cones) {
+            Err(()) => {
+                for p in &mut self.particles {
+                    p.pose = p.pose.compose(&delta);
+                    let pose = StampedPose { t, pose: p.pose };
+                    push_step(p, scan, pose, vec![None; cones.len()]);
+                }
+                return;
+            }
+            Ok(Some(pose)) => {
+                // Spread the particles around the alignment.
+                let spread = Vector3::new(0.5, 0.5, 0.2);
+                for k in 0..self.particles.len() {
+                    let noise = self.normal3().component_mul(&spread);
+                    self.particles[k].pose = SE2::from_vector(&(pose.to_vector() + noise));
+                }
+            }
+            Ok(None) => {}
+        }
+        let measurements: Vec<_> = cones
+            .iter()
+            .map(|d| measurement(&self.run.config, d))
+            .collect();
+        let chol = (q + Matrix3::identity() * 1e-12).cholesky();
+        let mut tracker_choices = Vec::new();
+
+        let best_before = self.best_index();
+        for k in 0..self.particles.len() {
+            let noise = match &chol {
+                Some(c) => c.l() * self.normal3(),
+                None => Vector3::zeros(),
+            };
+            let choices =
+                self.update_particle(k, scan, t, cones, &measurements, &delta, &q, &noise);
+            if k == best_before {
+                tracker_choices = choices;
+            }
+        }
+        // The tracker follows the particle that was best before the scan.
+        for (i, c) in tracker_choices.iter().enumerate() {
+            if let Some(l) = c {
+                self.run.remember(scan, i, &cones[i], *l);
+            }
+        }
+        let best = self.best_index();
+        let (pose, returned) = (self.particles[best].pose, self.particles[best].returned);
+
+        let recognised = if self.run.lap_closed(&pose, returned) {
+            Some(pose)
+        } else if self.run.at_start(&pose) {
+            self.recognise(&self.particles[best], cones)
+        } else {
+            None
+        };
+        if let Some(place) = recognised {
+            let start = Instant::now();
+            self.run.close_loop();
+            // Every particle carries on with the best particle's map, moved
+            // to where the start landmarks put it.
+            let mut chosen = self.particles[best].clone();
+            for lm in &mut chosen.map {
+                if lm.sighting.view == View::Returned {
+                    Rc::make_mut(lm).sighting.settle();
+                }
+            }
+            self.snap(&mut chosen, &place);
+            for p in &mut self.particles {
+                *p = chosen.clone();
+                p.log_weight = 0.0;
+            }
+            self.run
+                .timing
+                .loop_closures
+                .push(start.elapsed().as_secs_f64());
+        } else {
+            self.resample();
+        }
+    }
+
+    /// Place recognition for a particle whose drift hides the start
+    /// landmarks from the association gates ([`align::recognise`]).
+    fn recognise(&self, particle: &Particle, cones: &[Detection]) -> Option<SE2> {
+        let distance = self.run.motion.distance();
+        let reach = self.run.config.max_range + 5.0;
+        let old: Vec<(Vector2<f64>, Color)> = particle
+            .map
+            .iter()
+            .filter(|lm| {
+                !lm.removed
+                    && lm.sighting.confirmed
+                    && lm.sighting.view == View::Left
+                    && lm.sighting.is_start_area(distance, particle.pose.theta)
+                    && (lm.mean - particle.pose.t).norm() < reach
+            })
+            .map(|lm| (lm.mean, lm.sighting.color()))
+            .collect();
+        align::recognise(
+            &old,
+            cones,
+            &particle.pose,
+            self.run.config.loop_min_returned,
+        )
+    }
+
+    /// Moves a particle to `place` at a loop closure. The landmarks it made
+    /// on the way back into the start area carry the same drift, so they
+    /// move with it, and those that then fall on an older landmark are
+    /// duplicates and go.
+    fn snap(&self, particle: &mut Particle, place: &SE2) {
+        let correction = place.compose(&particle.pose.inverse());
+        if correction.t.norm() < 1e-9 && correction.theta.abs() < 1e-9 {
+            return;
+        }
+        particle.pose = *place;
+        let recent = self.run.motion.distance() - START_AREA;
+        let older: Vec<(Vector2<f64>, Color)> = particle
+            .map
+            .iter()
+            .filter(|lm| !lm.removed && lm.sighting.created_distance < recent)
+            .map(|lm| (lm.mean, lm.sighting.color()))
+            .collect();
+        let rotation = correction.rotation();
+        for slot in &mut particle.map {
+            if slot.removed || slot.sighting.created_distance < recent {
+                continue;
+            }
+            let lm = Rc::make_mut(slot);
+            lm.mean = correction.transform_point(&lm.mean);
+            lm.cov = rotation * lm.cov * rotation.transpose();
+            let color = lm.sighting.color();
+            lm.removed = older
+                .iter()
+                .any(|(m, c)| (m - lm.mean).norm() < DUPLICATE_RADIUS && c.compatible(color));
+        }
+    }
+
+    fn best_index(&self) -> usize {
+        (0..self.particles.len())
+            .max_by(|&a, &b| {
+                self.particles[a]
+                    .log_weight
+                    .total_cmp(&self.particles[b].log_weight)
+            })
+            .unwrap_or(0)
+    }
+
+    /// A standard normal 3-vector.
+    fn normal3(&mut self) -> Vector3<f64> {
+        Vector3::from_fn(|_, _| StandardNormal.sample(&mut self.rng))
+    }
+
+    /// Moves, associates, weighs and updates particle `k`; returns what each
+    /// detection became.
+    #[allow(clippy::too_many_arguments)]
+    fn update_particle(
+        &mut self,
+        k: usize,
+        scan: usize,
+        t: f64,
+        cones: &[Detection],
+        measurements: &[(Vector2<f64>, Matrix2<f64>)],
+        delta: &SE2,
+        q: &Matrix3<f64>,
+        noise: &Vector3<f64>,
+    ) -> Vec<Option<usize>> {
+        let config = &self.run.config;
+        let settings = self.settings;
+        let localising = self.run.mode == Mode::Localising;
+        let particle = &self.particles[k];
+        // The motion's covariance in the world frame at this particle.
+        let (_, j_delta) = compose_jacobians(&particle.pose, delta);
+        let motion_cov = j_delta * q * j_delta.transpose();
+        let predicted = particle.pose.compose(delta);
+        // 1.0 associates at its sample, 2.0 at the prediction with the
+        // motion's uncertainty.
+        let (at, at_cov) = match settings.version {
+            Version::One => (
+                SE2::from_vector(&(predicted.to_vector() + j_delta * noise)),
+                Matrix3::zeros(),
+            ),
+            Version::Two => (predicted, motion_cov),
+        };
+        let live = particle.map.iter().enumerate().filter_map(|(l, lm)| {
+            (!lm.removed && (!localising || lm.sighting.confirmed)).then_some((
+                l,
+                super::Landmark {
+                    mean: lm.mean,
+                    cov: lm.cov,
+                    cross: SMatrix::zeros(),
+                    sighting: &lm.sighting,
+                },
+            ))
+        });
+        let (candidates, nearest) = candidates(config, &at, &at_cov, measurements, cones, live);
+        let tracked = self
+            .run
+            .tracked(cones, |l| particle.map.get(l).is_some_and(|lm| !lm.removed));
+        let choices = self
+            .run
+            .choose(scan, &candidates, &nearest, &at_cov, &tracked, |i| {
+                let w = at.transform_point(&cones[i].position);
+                clear_of(
+                    &w,
+                    particle
+                        .map
+                        .iter()
+                        .filter(|lm| !lm.removed)
+                        .map(|lm| &lm.mean),
+                )
+            });
+        // Weight of the matched observations: N(z; ẑ, S) with the pose part
+        // of S for 2.0, as the pairs computed it.
+        let mut log_weight = 0.0;
+        for (i, c) in choices.iter().enumerate() {
+            log_weight += match c {
+                Choice::Landmark(l) => candidates[i]
+                    .iter()
+                    .find(|p| p.landmark == *l)
+                    .map_or(settings.new_landmark_log_weight, |p| -0.5 * p.cost),
+                _ => settings.new_landmark_log_weight,
+            };
+        }
+        let pose = match settings.version {
+            Version::One => at,
+            Version::Two => proposal(
+                &predicted,
+                &motion_cov,
+                &particle.map,
+                &choices,
+                measurements,
+                noise,
+            ),
+        };
+
+        let particle = &mut self.particles[k];
+        particle.pose = pose;
+        particle.returned = 0;
+
+        let distance = self.run.motion.distance();
+        let mut associated = vec![false; particle.map.len()];
+        let mut out = vec![None; cones.len()];
+        for (i, d) in cones.iter().enumerate() {
+            let (z, r) = &measurements[i];
+            let landmark = match choices[i] {
+                Choice::Landmark(l) if l < particle.map.len() => {
+                    let lm = Rc::make_mut(&mut particle.map[l]);
+
+                    if !localising {
+                        refine(lm, &pose, z, r);
+                        lm.sighting.count(d.color, config.confirm_after);
+                    }
+                    Some(l)
+                }
+                Choice::New if !localising => {
+                    let (mean, _, j_z) = landmark_from(&pose, z);
+                    particle.map.push(Rc::new(Landmark {
+                        mean,
+                        cov: j_z * r * j_z.transpose(),
+                        removed: false,
+                        sighting: Sighting::new(d.color, scan, distance, pose.theta),
+                    }));
+                    associated.push(true);
+                    Some(particle.map.len() - 1)
+                }
+                _ => None,
+            };
+            out[i] = landmark;
+            let Some(l) = landmark else { continue };
+            associated[l] = true;
+            let lm = Rc::make_mut(&mut particle.map[l]);
+            if lm.sighting.revisit(scan, distance, pose.theta) {
+                particle.returned += 1;
+            }
+        }
+        // Misses: confirmed landmarks in view that were not seen lower the
+        // weight; tentative ones missed too often are dropped.
+        let inverse = pose.inverse();
+        let reach2 = (config.max_range + 1.0).powi(2);
+        for (l, slot) in particle.map.iter_mut().enumerate() {
+            if slot.removed {
+                continue;
+            }
+            let near = (slot.mean - pose.t).norm_squared() < reach2;
+            let visible = near && in_view(config, &inverse, &slot.mean);
+            if visible && !associated[l] && slot.sighting.confirmed {
+                log_weight += settings.missed_log_weight;
+            }
+            let mut sighting = slot.sighting.clone();
+            let drop = sighting.after_scan(visible, associated[l], !localising, scan, distance);
+            if drop || sighting != slot.sighting {
+                let lm = Rc::make_mut(slot);
+                lm.sighting = sighting;
+                lm.removed = drop;
+            }
+        }
+        particle.log_weight += log_weight;
+        let choices_u32 = out.iter().map(|c| c.map(|l| l as u32)).collect();
+        push_step(particle, scan, StampedPose { t, pose }, choices_u32);
+        out
+    }
+
+    /// Low-variance resampling when the effective sample size is low.
+    fn resample(&mut self) {
+        let n = self.particles.len();
+        let max = self
+            .particles
+            .iter()
+            .map(|p| p.log_weight)
+            .fold(f64::NEG_INFINITY, f64::max);
+        if !max.is_finite() {
+            for p in &mut self.particles {
+                p.log_weight = 0.0;
+            }
+            return;
+        }
+        let weights: Vec<f64> = self
+            .particles
+            .iter()
+            .map(|p| (p.log_weight - max).exp())
+            .collect();
+        let total: f64 = weights.iter().sum();
+        let ess = total * total / weights.iter().map(|w| w * w).sum::<f64>();
+        if ess >= self.settings.resample_below * n as f64 {
+            // Keep the weights bounded.
+            for p in &mut self.particles {
+                p.log_weight -= max;
+            }
+            return;
+        }
+        let step = total / n as f64;
+        let mut target = rand::Rng::random::<f64>(&mut self.rng) * step;
+        let mut chosen = Vec::with_capacity(n);
+        let (mut i, mut cumulative) = (0, weights[0]);
+        for _ in 0..n {
+            while cumulative < target && i + 1 < n {
+                i += 1;
+                cumulative += weights[i];
+            }
+            chosen.push(i);
+            target += step;
+        }
+        let mut next: Vec<Particle> = chosen.iter().map(|&i| self.particles[i].clone()).collect();
+        for p in &mut next {
+            p.log_weight = 0.0;
+        }
+        self.particles = next;
+        self.resamplings += 1;
+    }
+
+    /// Confirmed, live landmarks of the best particle, in index order.
+    fn map_rows(&self) -> Vec<usize> {
+        let best = self.best();
+        (0..best.map.len())
+            .filter(|&l| !best.map[l].removed && best.map[l].sighting.confirmed)
+            .collect()
+    }
+
+    /// The best particle's map: confirmed landmarks with their covariances.
+    pub fn map(&self) -> Vec<Cone> {
+        let best = self.best();
+        self.map_rows()
+            .into_iter()
+            .map(|l| Cone {
+                position: best.map[l].mean,
+                color: best.map[l].sighting.color(),
+                covariance: best.map[l].cov,
+            })
+            .collect()
+    }
+
+    /// The best particle's path, one pose per scan.
+    pub fn trajectory(&self) -> Vec<StampedPose> {
+        let mut poses: Vec<StampedPose> = self.steps().map(|s| s.pose).collect();
+        poses.reverse();
+        poses
+    }
+
+    /// The best particle's associations: for every detection, its row in
+    /// [`FastSlam::map`] (or none).
+    pub fn associations(&self) -> Vec<Association> {
+        let best = self.best();
+        let mut row = vec![None; best.map.len()];
+        for (k, l) in self.map_rows().into_iter().enumerate() {
+            row[l] = Some(k);
+        }
+        let mut steps: Vec<&Step> = self.steps().collect();
+        steps.reverse();
+        steps
+            .into_iter()
+            .flat_map(|s| {
+                let row = &row;
+                s.choices
+                    .iter()
+                    .enumerate()
+                    .map(move |(det, c)| Association {
+                        scan: s.scan,
+                        det,
+                        landmark: c.and_then(|l| row.get(l as usize).copied().flatten()),
+                    })
+            })
+            .collect()
+    }
+
+    /// The best particle's path, newest first.
+    fn steps(&self) -> impl Iterator<Item = &Step> {
+        std::iter::successors(self.best().path.as_deref(), |s| s.parent.as_deref())
+    }
+}
+
+fn push_step(p: &mut Particle, scan: usize, pose: StampedPose, choices: Vec<Option<u32>>) {
+    let parent = p.path.take();
+    p.path = Some(Rc::new(Step {
+        scan,
+        pose,
+        choices: choices.into_boxed_slice(),
+        parent,
+    }));
+}
+
+/// FastSLAM 2.0's proposal: the Gaussian over the pose given the motion and
+/// the matched observations, folded in one at a time (each relinearised at
+/// the current mean), sampled with the standard-normal `noise`.
+fn proposal(
+    predicted: &SE2,
+    motion_cov: &Matrix3<f64>,
+    map: &[Rc<Landmark>],
+    choices: &[Choice],
+    measurements: &[(Vector2<f64>, Matrix2<f64>)],
+    noise: &Vector3<f64>,
+) -> SE2 {
+    // A floor keeps Σ invertible when the car stands still.
+    let mut cov = motion_cov + Matrix3::identity() * 1e-10;
+    let mut mean = predicted.to_vector();
+    for (c, (z, r)) in choices.iter().zip(measurements) {
+        let Choice::Landmark(l) = c else { continue };
+        let lm = &map[*l];
+        let at = SE2::from_vector(&mean);
+        let Some(pred) = predict(&at, &lm.mean) else {
+            continue;
+        };
+        let q = pred.h_landmark * lm.cov * pred.h_landmark.transpose() + r;
+        let (Some(q_inv), Some(cov_inv)) = (q.try_inverse(), cov.try_inverse()) else {
+            continue;
+        };
+        let Some(next) = (pred.h_pose.transpose() * q_inv * pred.h_pose + cov_inv).try_inverse()
+        else {
+            continue;
+        };
+        cov = 0.5 * (next + next.transpose());
+        mean += cov * pred.h_pose.transpose() * q_inv * innovation(z, &pred.z);
+        mean[2] = normalize_angle(mean[2]);
+    }
+    let sample = match cov.cholesky() {
+        Some(c) => mean + c.l() * noise,
+        None => mean,
+    };
+    SE2::from_vector(&sample)
+}
+
+/// The landmark's EKF update with a range-bearing measurement from `pose`.
+fn refine(lm: &mut Landmark, pose: &SE2, z: &Vector2<f64>, r: &Matrix2<f64>) {
+    let Some(pred) = predict(pose, &lm.mean) else {
+        return;
+    };
+    let h = pred.h_landmark;
+    let pht = lm.cov * h.transpose();
+    let Some(s_inv) = (h * pht + r).try_inverse() else {
+        return;
+    };
+    let k = pht * s_inv;
+    lm.mean += k * innovation(z, &pred.z);
+    let cov = (Matrix2::identity() - k * h) * lm.cov;
+    lm.cov = 0.5 * (cov + cov.transpose());
+}
