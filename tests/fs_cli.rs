@@ -90,3 +90,96 @@ fn a_bad_log_line_is_named_and_leaves_no_output() {
     assert!(String::from_utf8_lossy(&o.stderr).contains("skipped line 2"));
     assert!(map.exists());
 }
+
+/// Runs `fs-slam` with `extra` options on `dir`'s log and scores it.
+fn slam_and_score(dir: &Path, extra: &[&str]) -> serde_json::Value {
+    let (map, traj, assoc) = (dir.join("m.csv"), dir.join("t.tum"), dir.join("a.csv"));
+    let log = dir.join("log.jsonl");
+    let mut args = vec![
+        "fs-slam",
+        s(&log),
+        "--map-out",
+        s(&map),
+        "--traj-out",
+        s(&traj),
+    ];
+    args.extend(["--assoc-out", s(&assoc)]);
+    args.extend(extra);
+    let o = cairn(&args);
+    assert!(
+        o.status.success(),
+        "{extra:?}: {}",
+        String::from_utf8_lossy(&o.stderr)
+    );
+    let o = cairn(&[
+        "fs-eval",
+        "--truth",
+        s(dir),
+        "--map",
+        s(&map),
+        "--traj",
+        s(&traj),
+        "--assoc",
+        s(&assoc),
+        "--json",
+    ]);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    serde_json::from_slice(&o.stdout).unwrap()
+}
+
+#[test]
+fn every_estimator_and_point_clouds_run_from_the_command_line() {
+    let dir = temp_dir("estimators");
+    let o = cairn(&["fs-sim", "--seed", "1", "--laps", "1.2", "-o", s(&dir)]);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let truth = dir.join("truth_assoc.csv");
+    let log = dir.join("log.jsonl");
+    for extra in [
+        vec!["--estimator", "ekf"],
+        vec!["--estimator", "ekf", "--odometry-noise", "rot-trans-rot"],
+        vec!["--estimator", "fastslam2", "--particles", "20"],
+        vec![
+            "--estimator",
+            "fastslam1",
+            "--particles",
+            "20",
+            "--known-assoc",
+            s(&truth),
+        ],
+    ] {
+        let report = slam_and_score(&dir, &extra);
+        let accuracy = report["association_accuracy"].as_f64().unwrap();
+        assert!(accuracy > 0.9, "{extra:?}: {report}");
+    }
+    // Options that make no sense are refused with a message.
+    for bad in [
+        vec!["--estimator", "kalman"],
+        vec!["--estimator", "graph", "--known-assoc", s(&truth)],
+        vec!["--odometry-noise", "velocity", "--alpha", "1,1,1,1"],
+        vec!["--particles", "0"],
+    ] {
+        let mut args = vec!["fs-slam", s(&log)];
+        args.extend(&bad);
+        let o = cairn(&args);
+        assert!(!o.status.success(), "{bad:?} accepted");
+        assert!(String::from_utf8_lossy(&o.stderr).contains("--"), "{bad:?}");
+    }
+
+    let points = temp_dir("points");
+    let o = cairn(&[
+        "fs-sim",
+        "--seed",
+        "2",
+        "--laps",
+        "1.2",
+        "--points",
+        "-o",
+        s(&points),
+    ]);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let log = std::fs::read_to_string(points.join("log.jsonl")).unwrap();
+    assert!(log.contains("\"points\"") && !log.contains("\"cones\""));
+    let report = slam_and_score(&points, &["--estimator", "ekf"]);
+    assert_eq!(report["phantom"], 0, "{report}");
+    assert!(report["map_rmse"].as_f64().unwrap() < 0.2, "{report}");
+}

@@ -8,6 +8,7 @@ use crate::filter::ekf::EkfSlam;
 use crate::filter::fastslam::{FastSlam, ParticleConfig, Version};
 use crate::frontend::{FrontEndConfig, GraphSlam, Mode, Timing};
 use crate::log::Record;
+use crate::points::{Clustered, PointCloudConfig};
 use crate::track::Cone;
 
 /// A SLAM estimator fed one log record at a time.
@@ -83,6 +84,8 @@ pub struct EstimatorBuilder<'a> {
     pub map: Option<&'a [Cone]>,
     /// Known correspondences (filters only; the graph ignores them).
     pub known: Option<&'a [Association]>,
+    /// Extract detections from `points` records with these settings.
+    pub points: Option<PointCloudConfig>,
 }
 
 impl<'a> EstimatorBuilder<'a> {
@@ -95,11 +98,19 @@ impl<'a> EstimatorBuilder<'a> {
             seed: 0,
             map: None,
             known: None,
+            points: None,
         }
     }
 
     /// The estimator.
     pub fn build(&self) -> Box<dyn Estimator> {
+        match &self.points {
+            Some(points) => Box::new(Clustered::new(self.build_inner(), points.clone())),
+            None => self.build_inner(),
+        }
+    }
+
+    fn build_inner(&self) -> Box<dyn Estimator> {
         let config = self.config.clone();
         match self.kind {
             EstimatorKind::Graph => Box::new(match self.map {

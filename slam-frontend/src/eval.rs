@@ -194,25 +194,11 @@ pub fn aligned_rms(a: &[Vector2<f64>], b: &[Vector2<f64>]) -> f64 {
 
 /// The rotation and translation minimising Σ‖R aᵢ + t − bᵢ‖².
 pub fn rigid_alignment(a: &[Vector2<f64>], b: &[Vector2<f64>]) -> (Matrix2<f64>, Vector2<f64>) {
-    let n = a.len().min(b.len()).max(1) as f64;
-    let ca = a.iter().sum::<Vector2<f64>>() / n;
-    let cb = b.iter().sum::<Vector2<f64>>() / n;
-    let mut h = Matrix2::zeros();
-    for (p, q) in a.iter().zip(b) {
-        h += (p - ca) * (q - cb).transpose();
-    }
-    let svd = h.svd(true, true);
-    let (Some(u), Some(vt)) = (svd.u, svd.v_t) else {
-        return (Matrix2::identity(), cb - ca);
-    };
-    let mut v = vt.transpose();
-    let mut r = v * u.transpose();
-    if r.determinant() < 0.0 {
-        // A reflection fits better than any rotation: flip the weakest axis.
-        v.column_mut(1).neg_mut();
-        r = v * u.transpose();
-    }
-    (r, cb - r * ca)
+    crate::points::arun(a, b).unwrap_or_else(|| {
+        let n = a.len().min(b.len()).max(1) as f64;
+        let mean = |s: &[Vector2<f64>]| s.iter().take(n as usize).sum::<Vector2<f64>>() / n;
+        (Matrix2::identity(), mean(b) - mean(a))
+    })
 }
 
 /// p50, p99 and max of a list of durations in seconds, in milliseconds.

@@ -5,7 +5,8 @@
 //! - [`sim`]: a seeded simulator writing the input log and its ground truth;
 //! - [`log`], [`files`]: the interchange formats of `shared/fs/FORMAT.md`;
 //! - [`frontend`]: the graph-SLAM front end; [`filter`]: EKF-SLAM and
-//!   FastSLAM 1.0/2.0 beside it; [`estimator`]: one interface over all.
+//!   FastSLAM 1.0/2.0 beside it; [`estimator`]: one interface over all;
+//! - [`points`]: landmarks from point clouds (clustering, Arun alignment).
 
 pub mod color;
 pub mod course;
@@ -16,6 +17,7 @@ pub mod filter;
 pub mod frontend;
 pub mod log;
 pub mod motion;
+pub mod points;
 pub mod run;
 pub mod sighting;
 pub mod sim;

@@ -125,11 +125,11 @@ impl Log {
         Ok(log)
     }
 
-    /// The number of `cones` records.
+    /// The number of scans: `cones` and `points` records.
     pub fn scans(&self) -> usize {
         self.records
             .iter()
-            .filter(|r| matches!(r, Record::Cones { .. }))
+            .filter(|r| matches!(r, Record::Cones { .. } | Record::Points { .. }))
             .count()
     }
 }

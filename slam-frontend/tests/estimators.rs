@@ -286,3 +286,33 @@ fn every_estimator_closes_the_loop_of_a_random_track_and_localises() {
         );
     }
 }
+
+#[test]
+fn point_clouds_run_end_to_end_through_clustering() {
+    use cairn_slam::points::PointCloudConfig;
+    use cairn_slam::sim::point_clouds;
+    let (track, course) = random_track(1, &TrackRules::default());
+    let sim = simulate(&track, &course, &SimConfig::default());
+    let points = PointCloudConfig::default();
+    let clouds = point_clouds(&sim, &points, 3);
+    assert!(
+        clouds
+            .log
+            .iter()
+            .any(|r| matches!(r, Record::Points { .. }))
+    );
+    assert!(!clouds.log.iter().any(|r| matches!(r, Record::Cones { .. })));
+    // Nearly every cone detection survives as one cluster.
+    let ratio = clouds.truth_associations.len() as f64 / sim.truth_associations.len() as f64;
+    assert!((0.95..1.05).contains(&ratio), "{ratio}");
+    for kind in [EstimatorKind::Graph, EstimatorKind::Ekf] {
+        let mut builder = EstimatorBuilder::new(kind, FrontEndConfig::default());
+        builder.points = Some(points.clone());
+        let (slam, report) = run_estimator(&clouds, &builder);
+        println!("{kind:?} on points: {report:?}");
+        assert_eq!(slam.loop_closures(), 1, "{kind:?}");
+        assert!(report.association_accuracy > 0.95, "{kind:?}: {report:?}");
+        assert!(report.map_rmse_aligned < 0.3, "{kind:?}: {report:?}");
+        assert_eq!(report.phantom, 0, "{kind:?}: {report:?}");
+    }
+}

@@ -8,9 +8,10 @@ use cairn::slam::eval::{Report, evaluate, latency_ms};
 use cairn::slam::files::{self, StampedPose};
 use cairn::slam::frontend::association::AssociationMethod;
 use cairn::slam::frontend::{FrontEndConfig, MotionModel};
-use cairn::slam::log::{Log, to_jsonl};
+use cairn::slam::log::{Log, Record, to_jsonl};
 use cairn::slam::motion::DEFAULT_ALPHA;
-use cairn::slam::sim::{Preset, SimConfig, simulate};
+use cairn::slam::points::PointCloudConfig;
+use cairn::slam::sim::{Preset, SimConfig, point_clouds, simulate};
 use cairn::slam::track::{map_from_csv, map_to_csv};
 use cairn::slam::trackgen::{TrackRules, random_track};
 use cairn::slam::{Cone, Track};
@@ -48,6 +49,10 @@ pub struct SimArgs {
     /// Output directory: log.jsonl, truth_traj.tum, truth_assoc.csv, truth_map.csv.
     #[arg(short, long)]
     out: PathBuf,
+    /// Write point clouds (`points` records) instead of cone detections;
+    /// truth_assoc.csv then labels the clusters `fs-slam` extracts.
+    #[arg(long)]
+    points: bool,
 }
 
 /// Options of `cairn fs-slam`.
@@ -178,7 +183,10 @@ pub fn run_sim(a: SimArgs) -> Result<(), String> {
         seed: a.seed,
         ..SimConfig::default()
     };
-    let sim = simulate(&track, &course, &config);
+    let mut sim = simulate(&track, &course, &config);
+    if a.points {
+        sim = point_clouds(&sim, &PointCloudConfig::default(), a.seed);
+    }
     std::fs::create_dir_all(&a.out).map_err(|e| format!("{}: {e}", a.out.display()))?;
     write_output(&a.out.join(LOG), to_jsonl(&sim.log).as_bytes())?;
     write_output(
@@ -199,7 +207,10 @@ pub fn run_sim(a: SimArgs) -> Result<(), String> {
         course.length(),
         sim.log
             .iter()
-            .filter(|r| matches!(r, cairn::slam::log::Record::Cones { .. }))
+            .filter(|r| matches!(
+                r,
+                cairn::slam::log::Record::Cones { .. } | cairn::slam::log::Record::Points { .. }
+            ))
             .count(),
         sim.truth_associations.len(),
         a.out.display()
@@ -268,6 +279,14 @@ pub fn run_slam(a: SlamArgs) -> Result<(), String> {
     builder.seed = a.seed;
     builder.map = map.as_deref();
     builder.known = known.as_deref();
+    // A log of point clouds goes through the clustering front end first.
+    if log
+        .records
+        .iter()
+        .any(|r| matches!(r, Record::Points { .. }))
+    {
+        builder.points = Some(PointCloudConfig::default());
+    }
     let mut slam = builder.build();
     for record in &log.records {
         slam.process(record);
