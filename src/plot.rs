@@ -132,3 +132,88 @@ where
     area.present()?;
     Ok(())
 }
+
+/// Curves of y against x, one per named series.
+pub struct LinePlot<'a> {
+    /// Title above the plot.
+    pub title: &'a str,
+    /// Axis descriptions.
+    pub x_desc: &'a str,
+    /// See `x_desc`.
+    pub y_desc: &'a str,
+    /// (name, points) per curve.
+    pub series: &'a [(String, Vec<(f64, f64)>)],
+}
+
+/// Writes a line plot to `path` (`.png` for a bitmap, otherwise SVG).
+pub fn draw_lines(plot: &LinePlot, path: &Path) -> Result<(), String> {
+    let size = (900, 560);
+    let is_png = path
+        .extension()
+        .is_some_and(|e| e.eq_ignore_ascii_case("png"));
+    let result = if is_png {
+        lines_on(plot, BitMapBackend::new(path, size).into_drawing_area())
+    } else {
+        lines_on(plot, SVGBackend::new(path, size).into_drawing_area())
+    };
+    result.map_err(|e| format!("{}: {e}", path.display()))
+}
+
+fn lines_on<DB: DrawingBackend>(
+    plot: &LinePlot,
+    area: DrawingArea<DB, Shift>,
+) -> Result<(), Box<dyn std::error::Error>>
+where
+    DB::ErrorType: 'static,
+{
+    area.fill(&WHITE)?;
+    let all = plot.series.iter().flat_map(|(_, s)| s.iter());
+    let (mut x0, mut x1, mut y1) = (f64::INFINITY, f64::NEG_INFINITY, 0.0f64);
+    for &(x, y) in all.filter(|(x, y)| x.is_finite() && y.is_finite()) {
+        x0 = x0.min(x);
+        x1 = x1.max(x);
+        y1 = y1.max(y);
+    }
+    if x0 >= x1 || !x0.is_finite() {
+        (x0, x1) = if x0.is_finite() {
+            (x0 - 1.0, x0 + 1.0)
+        } else {
+            (0.0, 1.0)
+        };
+    }
+    let y1 = if y1 > 0.0 { 1.1 * y1 } else { 1.0 };
+    let mut chart = ChartBuilder::on(&area)
+        .caption(plot.title, ("sans-serif", 20))
+        .margin(10)
+        .x_label_area_size(40)
+        .y_label_area_size(55)
+        .build_cartesian_2d(x0..x1, 0.0..y1)?;
+    chart
+        .configure_mesh()
+        .x_desc(plot.x_desc)
+        .y_desc(plot.y_desc)
+        .draw()?;
+    for (k, (name, points)) in plot.series.iter().enumerate() {
+        let color = Palette99::pick(k).to_rgba();
+        chart
+            .draw_series(LineSeries::new(
+                points.iter().copied(),
+                color.stroke_width(2),
+            ))?
+            .label(name)
+            .legend(move |(x, y)| PathElement::new([(x, y), (x + 20, y)], color.stroke_width(2)));
+        chart.draw_series(
+            points
+                .iter()
+                .map(|&(x, y)| Circle::new((x, y), 3, color.filled())),
+        )?;
+    }
+    chart
+        .configure_series_labels()
+        .position(SeriesLabelPosition::UpperRight)
+        .background_style(WHITE.mix(0.8))
+        .border_style(BLACK)
+        .draw()?;
+    area.present()?;
+    Ok(())
+}

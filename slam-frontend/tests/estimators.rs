@@ -316,3 +316,29 @@ fn point_clouds_run_end_to_end_through_clustering() {
         assert_eq!(report.phantom, 0, "{kind:?}: {report:?}");
     }
 }
+
+#[test]
+fn ekf_slam_works_with_every_association_method() {
+    use cairn_slam::frontend::association::AssociationMethod;
+    let (track, course) = random_track(1, &TrackRules::default());
+    let sim = simulate(
+        &track,
+        &course,
+        &SimConfig {
+            laps: 1.2,
+            ..SimConfig::default()
+        },
+    );
+    for method in AssociationMethod::ALL {
+        let config = FrontEndConfig {
+            association: method,
+            ..FrontEndConfig::default()
+        };
+        // JCBB needs the landmarks' correlations, not only the pose's.
+        let (slam, report) =
+            run_estimator(&sim, &EstimatorBuilder::new(EstimatorKind::Ekf, config));
+        assert_eq!(slam.loop_closures(), 1, "{method:?}");
+        assert!(report.association_accuracy > 0.97, "{method:?}: {report:?}");
+        assert_eq!(report.phantom, 0, "{method:?}: {report:?}");
+    }
+}

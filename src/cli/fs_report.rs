@@ -44,27 +44,7 @@ struct Run {
 }
 
 pub fn run(a: ReportArgs) -> Result<(), String> {
-    let mut tracks: Vec<(Track, Course)> = Vec::new();
-    let mut skipped = Vec::new();
-    let mut files: Vec<PathBuf> = std::fs::read_dir(&a.tracks)
-        .map_err(|e| format!("{}: {e}", a.tracks.display()))?
-        .filter_map(|e| e.ok().map(|e| e.path()))
-        .filter(|p| p.extension().is_some_and(|e| e == "csv" || e == "yaml"))
-        .collect();
-    files.sort();
-    for path in files {
-        let track = Track::load(&path).map_err(|e| format!("{}: {e}", path.display()))?;
-        if track.kind != cairn::slam::TrackKind::Loop {
-            continue;
-        }
-        match Course::from_track(&track) {
-            Ok(course) => tracks.push((track, course)),
-            Err(e) => skipped.push(format!("{}: {e}", track.name)),
-        }
-    }
-    for seed in 0..a.random {
-        tracks.push(random_track(seed, &TrackRules::default()));
-    }
+    let (tracks, skipped) = load_tracks(&a.tracks, a.random)?;
     let presets = [Preset::standard(), Preset::hard()];
     let mut jobs = Vec::new();
     for t in 0..tracks.len() {
@@ -192,6 +172,34 @@ pub fn run(a: ReportArgs) -> Result<(), String> {
     super::write_output(&a.out, md.as_bytes())?;
     eprintln!("wrote {}", a.out.display());
     Ok(())
+}
+
+/// Tracks with their centre lines.
+pub type Tracks = Vec<(Track, Course)>;
+
+/// The closed tracks in `dir` that have a centre line (and why the others
+/// were left out), then `random` generated tracks.
+pub fn load_tracks(dir: &std::path::Path, random: u64) -> Result<(Tracks, Vec<String>), String> {
+    let mut tracks = Vec::new();
+    let mut skipped = Vec::new();
+    let mut files: Vec<PathBuf> = std::fs::read_dir(dir)
+        .map_err(|e| format!("{}: {e}", dir.display()))?
+        .filter_map(|e| e.ok().map(|e| e.path()))
+        .filter(|p| p.extension().is_some_and(|e| e == "csv" || e == "yaml"))
+        .collect();
+    files.sort();
+    for path in files {
+        let track = Track::load(&path).map_err(|e| format!("{}: {e}", path.display()))?;
+        if track.kind != cairn::slam::TrackKind::Loop {
+            continue;
+        }
+        match Course::from_track(&track) {
+            Ok(course) => tracks.push((track, course)),
+            Err(e) => skipped.push(format!("{}: {e}", track.name)),
+        }
+    }
+    tracks.extend((0..random).map(|seed| random_track(seed, &TrackRules::default())));
+    Ok((tracks, skipped))
 }
 
 fn row(name: &str, runs: &[&Run]) -> String {

@@ -6,6 +6,7 @@ mod fs;
 mod fs_report;
 mod generate;
 mod solve;
+mod study;
 
 use clap::{Parser, Subcommand};
 
@@ -36,6 +37,9 @@ enum Command {
     FsEval(fs::EvalArgs),
     /// Simulate, map and score every shared and some random tracks into a report.
     FsReport(fs_report::ReportArgs),
+    /// Compare the estimators (graph, EKF-SLAM, FastSLAM 1.0/2.0) on simulated
+    /// runs into docs/estimators.md with plots.
+    FsStudy(study::StudyArgs),
 }
 
 /// Runs the parsed command.
@@ -49,6 +53,7 @@ pub fn run(cli: Cli) -> Result<(), String> {
         Command::FsSlam(args) => fs::run_slam(args),
         Command::FsEval(args) => fs::run_eval(args),
         Command::FsReport(args) => fs_report::run(args),
+        Command::FsStudy(args) => study::run(args),
     }
 }
 

@@ -4,6 +4,7 @@
 
 use super::{Choice, Run, candidates, clear_of, landmark_from, measurement, predict};
 use crate::files::{Association, StampedPose};
+use crate::frontend::association::Pair;
 use crate::frontend::{FrontEndConfig, Mode, Timing};
 use crate::log::{Detection, Record};
 use crate::motion::compose_jacobians;
@@ -275,8 +276,24 @@ impl EkfSlam {
             .enumerate()
             .map(|(k, _)| self.x.fixed_rows::<2>(POSE + 2 * k).into_owned())
             .collect();
+        // Pairs of different detections are correlated through the pose
+        // and through the landmarks' joint covariance: H_a P H_bᵀ.
+        let correlation = |a: &Pair, b: &Pair| -> Matrix2<f64> {
+            let part = |p: &Pair| {
+                let slot = self.landmarks[p.landmark].slot.unwrap_or(0);
+                let m = self.x.fixed_rows::<2>(slot).into_owned();
+                let h = predict(&pose, &m).map_or(Matrix2::zeros(), |r| r.h_landmark);
+                (slot, h)
+            };
+            let ((sa, ha), (sb, hb)) = (part(a), part(b));
+            let p = &self.p;
+            a.h_pose * pose_cov * b.h_pose.transpose()
+                + a.h_pose * p.fixed_view::<3, 2>(0, sb) * hb.transpose()
+                + ha * p.fixed_view::<2, 3>(sa, 0) * b.h_pose.transpose()
+                + ha * p.fixed_view::<2, 2>(sa, sb) * hb.transpose()
+        };
         self.run
-            .choose(scan, &candidates, &nearest, &pose_cov, &tracked, |i| {
+            .choose(scan, &candidates, &nearest, &tracked, &correlation, |i| {
                 clear_of(&pose.transform_point(&cones[i].position), means.iter())
             })
     }

@@ -7,6 +7,7 @@ use super::{Choice, Run, candidates, clear_of, innovation, landmark_from, measur
 use crate::color::Color;
 use crate::files::{Association, StampedPose};
 use crate::frontend::align;
+use crate::frontend::association::through_pose;
 use crate::frontend::{FrontEndConfig, Mode, Timing};
 use crate::log::{Detection, Record};
 use crate::motion::compose_jacobians;
@@ -424,9 +425,13 @@ impl FastSlam {
         let tracked = self
             .run
             .tracked(cones, |l| particle.map.get(l).is_some_and(|lm| !lm.removed));
-        let choices = self
-            .run
-            .choose(scan, &candidates, &nearest, &at_cov, &tracked, |i| {
+        let choices = self.run.choose(
+            scan,
+            &candidates,
+            &nearest,
+            &tracked,
+            &through_pose(&at_cov),
+            |i| {
                 let w = at.transform_point(&cones[i].position);
                 clear_of(
                     &w,
@@ -436,7 +441,8 @@ impl FastSlam {
                         .filter(|lm| !lm.removed)
                         .map(|lm| &lm.mean),
                 )
-            });
+            },
+        );
         // Weight of the matched observations: N(z; ẑ, S) with the pose part
         // of S for 2.0, as the pairs computed it.
         let mut log_weight = 0.0;

@@ -11,7 +11,7 @@ pub mod fastslam;
 use crate::color::Color;
 use crate::files::Association;
 use crate::frontend::align;
-use crate::frontend::association::{Candidates, Pair, associate};
+use crate::frontend::association::{Candidates, Correlation, Pair, associate};
 use crate::frontend::{FrontEndConfig, Mode, Timing, chi2_99};
 use crate::log::{Detection, Record};
 use crate::motion::Odometry;
@@ -240,8 +240,8 @@ impl Run {
         scan: usize,
         candidates: &Candidates,
         nearest: &[f64],
-        pose_cov: &Matrix3<f64>,
         tracked: &[Option<usize>],
+        correlation: Correlation,
         clear: impl Fn(usize) -> bool,
     ) -> Vec<Choice> {
         if let Some(known) = &self.known {
@@ -259,9 +259,9 @@ impl Run {
         let assigned = associate(
             self.config.association,
             candidates,
-            pose_cov,
             tracked,
             |pairs| chi2_99(2 * pairs),
+            correlation,
         );
         assigned
             .iter()

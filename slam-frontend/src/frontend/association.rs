@@ -60,7 +60,10 @@ pub struct Pair {
     pub innovation: Vector2<f64>,
     /// Jacobian of h with respect to the pose.
     pub h_pose: SMatrix<f64, 2, 3>,
-    /// Innovation covariance without the pose part: Hₘ Pₘ Hₘᵀ + R.
+    /// The pose part of the innovation covariance: Hₚ P Hₚᵀ.
+    pub s_pose: Matrix2<f64>,
+    /// The rest of the innovation covariance: Hₘ Pₘ Hₘᵀ + R, plus the
+    /// pose–landmark cross terms when the estimator keeps them.
     pub s_local: Matrix2<f64>,
     /// Bhattacharyya distance between the detection and the landmark.
     pub bhattacharyya: f64,
@@ -109,6 +112,7 @@ impl Pair {
             cost: d2 + det.ln(),
             innovation,
             h_pose,
+            s_pose,
             s_local,
             bhattacharyya: b1 + b2 + if colour_penalty > 0.0 { 1.0 } else { 0.0 },
         })
@@ -118,21 +122,35 @@ impl Pair {
 /// For each detection, its compatible pairs sorted by cost.
 pub type Candidates = Vec<Vec<Pair>>;
 
+/// The covariance between the predicted measurements of two pairs of
+/// different detections, when more than the pose correlates them (EKF-SLAM's
+/// landmarks are correlated with the pose and with each other).
+pub type Correlation<'a> = &'a dyn Fn(&Pair, &Pair) -> Matrix2<f64>;
+
+/// Pairs correlated only through a pose of covariance `pose_cov`: Hₚ,a P Hₚ,bᵀ.
+pub fn through_pose(
+    pose_cov: &nalgebra::Matrix3<f64>,
+) -> impl Fn(&Pair, &Pair) -> Matrix2<f64> + '_ {
+    move |a, b| a.h_pose * pose_cov * b.h_pose.transpose()
+}
+
 /// Chooses a landmark (or none) for every detection. `tracked[i]` is the
 /// landmark the tracker id of detection i pointed at in earlier scans.
+/// JCBB correlates the pairs by `correlation` ([`through_pose`] when only
+/// the pose is uncertain jointly).
 pub fn associate(
     method: AssociationMethod,
     candidates: &Candidates,
-    pose_cov: &nalgebra::Matrix3<f64>,
     tracked: &[Option<usize>],
     joint_gate: impl Fn(usize) -> f64,
+    correlation: Correlation,
 ) -> Vec<Option<usize>> {
     match method {
         AssociationMethod::MaximumLikelihood => {
             greedy(candidates, &vec![None; candidates.len()], |p| p.cost)
         }
         AssociationMethod::Sequential => sequential(candidates),
-        AssociationMethod::Jcbb => jcbb(candidates, pose_cov, joint_gate),
+        AssociationMethod::Jcbb => jcbb(candidates, correlation, joint_gate),
         AssociationMethod::Tracking => {
             let mut fixed = vec![None; candidates.len()];
             let mut taken = Vec::new();
@@ -193,13 +211,13 @@ fn sequential(candidates: &Candidates) -> Vec<Option<usize>> {
 /// the best hypothesis found, so a dense scan cannot stall an update.
 fn jcbb(
     candidates: &Candidates,
-    pose_cov: &nalgebra::Matrix3<f64>,
+    correlation: Correlation,
     joint_gate: impl Fn(usize) -> f64,
 ) -> Vec<Option<usize>> {
     let n = candidates.len();
     let mut search = Jcbb {
         candidates,
-        pose_cov,
+        correlation,
         gate: &joint_gate,
         best: vec![None; n],
         best_pairs: 0,
@@ -213,7 +231,7 @@ fn jcbb(
 
 struct Jcbb<'a, G: Fn(usize) -> f64> {
     candidates: &'a Candidates,
-    pose_cov: &'a nalgebra::Matrix3<f64>,
+    correlation: Correlation<'a>,
     gate: &'a G,
     best: Vec<Option<usize>>,
     best_pairs: usize,
@@ -276,10 +294,11 @@ impl<G: Fn(usize) -> f64> Jcbb<'_, G> {
         for (a, pa) in chosen.iter().enumerate() {
             nu.fixed_rows_mut::<2>(2 * a).copy_from(&pa.innovation);
             for (b, pb) in chosen.iter().enumerate() {
-                let mut block = pa.h_pose * self.pose_cov * pb.h_pose.transpose();
-                if a == b {
-                    block += pa.s_local;
-                }
+                let block = if a == b {
+                    pa.s_pose + pa.s_local
+                } else {
+                    (self.correlation)(pa, pb)
+                };
                 s.fixed_view_mut::<2, 2>(2 * a, 2 * b).copy_from(&block);
             }
         }

@@ -12,7 +12,7 @@ use crate::log::{Detection, Record};
 use crate::motion::{Odometry, compose_with_cov};
 use crate::sighting::{Sighting, View, in_view, near_start};
 use crate::track::Cone;
-use association::{AssociationMethod, Candidates, Pair, associate};
+use association::{AssociationMethod, Candidates, Pair, associate, through_pose};
 use cairn_core::{EdgeSE2, EdgeSE2XY, Graph, SE2};
 use cairn_solvers::{Optimizer, SolverConfig};
 use nalgebra::{Matrix2, Matrix3, SMatrix, Vector2};
@@ -366,9 +366,9 @@ impl GraphSlam {
         let assigned = associate(
             self.config.association,
             &candidates,
-            &pred_cov,
             &tracked,
             joint_gate,
+            &through_pose(&pred_cov),
         );
 
         // Local pose optimisation: odometry prior plus the matched landmarks.
