@@ -115,7 +115,7 @@ pub fn run(a: StudyArgs) -> Result<(), String> {
             builder.seed = *seed;
             let (slam, report) = run_estimator(&sim, &builder);
             let n = done.fetch_add(1, Ordering::Relaxed) + 1;
-            if n % 20 == 0 {
+            if n.is_multiple_of(20) {
                 eprintln!("  {n}/{} runs", jobs.len());
             }
             Run {
