@@ -78,6 +78,27 @@ pub struct Association {
     pub landmark: Option<usize>,
 }
 
+/// Associations in map rows: `detections` name landmarks by index (of
+/// `landmarks` in all), and `map_rows` lists the landmarks of the map in
+/// row order; detections of landmarks not in the map become `None`.
+pub fn in_map_rows(
+    detections: impl Iterator<Item = (usize, usize, Option<usize>)>,
+    landmarks: usize,
+    map_rows: &[usize],
+) -> Vec<Association> {
+    let mut row = vec![None; landmarks];
+    for (k, &l) in map_rows.iter().enumerate() {
+        row[l] = Some(k);
+    }
+    detections
+        .map(|(scan, det, l)| Association {
+            scan,
+            det,
+            landmark: l.and_then(|l| row.get(l).copied().flatten()),
+        })
+        .collect()
+}
+
 /// CSV `scan,det,landmark` with `-1` for rejected detections.
 pub fn associations_to_csv(associations: &[Association]) -> String {
     let mut out = String::from("scan,det,landmark\n");

@@ -52,6 +52,16 @@ pub struct Cone {
 }
 
 impl Cone {
+    /// The covariance to start a landmark from when localising on a map:
+    /// the file's, or 1 cm² when it gives none (ground truth has zeros).
+    pub fn prior_covariance(&self) -> Matrix2<f64> {
+        if self.covariance.determinant() > 0.0 {
+            self.covariance
+        } else {
+            Matrix2::identity() * 1e-4
+        }
+    }
+
     /// A cone with zero covariance.
     pub fn new(x: f64, y: f64, color: Color) -> Self {
         Self {

@@ -71,11 +71,7 @@ impl EkfSlam {
     pub fn with_map(config: FrontEndConfig, map: &[Cone]) -> Self {
         let mut ekf = Self::new(config);
         for c in map {
-            let cov = if c.covariance.determinant() > 0.0 {
-                c.covariance
-            } else {
-                Matrix2::identity() * 1e-4
-            };
+            let cov = c.prior_covariance();
             let slot = ekf.push_slot(ekf.landmarks.len());
             ekf.x.fixed_rows_mut::<2>(slot).copy_from(&c.position);
             ekf.p.fixed_view_mut::<2, 2>(slot, slot).copy_from(&cov);
@@ -507,17 +503,10 @@ impl EkfSlam {
 
     /// For every detection, its row in [`EkfSlam::map`] (or none).
     pub fn associations(&self) -> Vec<Association> {
-        let mut row = vec![None; self.landmarks.len()];
-        for (k, l) in self.map_rows().into_iter().enumerate() {
-            row[l] = Some(k);
-        }
-        self.detections
-            .iter()
-            .map(|&(scan, det, l)| Association {
-                scan,
-                det,
-                landmark: l.and_then(|l| row[l]),
-            })
-            .collect()
+        crate::files::in_map_rows(
+            self.detections.iter().copied(),
+            self.landmarks.len(),
+            &self.map_rows(),
+        )
     }
 }

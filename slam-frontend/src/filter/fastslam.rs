@@ -153,11 +153,7 @@ impl FastSlam {
             .map(|c| {
                 Rc::new(Landmark {
                     mean: c.position,
-                    cov: if c.covariance.determinant() > 0.0 {
-                        c.covariance
-                    } else {
-                        Matrix2::identity() * 1e-4
-                    },
+                    cov: c.prior_covariance(),
                     removed: false,
                     sighting: Sighting::known(c.color),
                 })
@@ -614,26 +610,15 @@ impl FastSlam {
     /// [`FastSlam::map`] (or none).
     pub fn associations(&self) -> Vec<Association> {
         let best = self.best();
-        let mut row = vec![None; best.map.len()];
-        for (k, l) in self.map_rows().into_iter().enumerate() {
-            row[l] = Some(k);
-        }
         let mut steps: Vec<&Step> = self.steps().collect();
         steps.reverse();
-        steps
-            .into_iter()
-            .flat_map(|s| {
-                let row = &row;
-                s.choices
-                    .iter()
-                    .enumerate()
-                    .map(move |(det, c)| Association {
-                        scan: s.scan,
-                        det,
-                        landmark: c.and_then(|l| row.get(l as usize).copied().flatten()),
-                    })
-            })
-            .collect()
+        let detections = steps.into_iter().flat_map(|s| {
+            s.choices
+                .iter()
+                .enumerate()
+                .map(move |(det, c)| (s.scan, det, c.map(|l| l as usize)))
+        });
+        crate::files::in_map_rows(detections, best.map.len(), &self.map_rows())
     }
 
     /// The best particle's path, newest first.

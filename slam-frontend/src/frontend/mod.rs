@@ -269,11 +269,7 @@ impl GraphSlam {
         slam.mode = Mode::Localising;
         slam.aligned = false;
         for c in map {
-            let cov = if c.covariance.determinant() > 0.0 {
-                c.covariance
-            } else {
-                Matrix2::identity() * 1e-4
-            };
+            let cov = c.prior_covariance();
             slam.landmarks.push(Landmark {
                 mean: c.position,
                 cov,
@@ -877,18 +873,13 @@ impl GraphSlam {
 
     /// For every detection, its row in [`GraphSlam::map`] (or none).
     pub fn associations(&self) -> Vec<Association> {
-        let mut row = vec![None; self.landmarks.len()];
-        for (k, l) in self.map_rows().into_iter().enumerate() {
-            row[l] = Some(k);
-        }
-        self.detections
-            .iter()
-            .map(|&(scan, det, l)| Association {
-                scan,
-                det,
-                landmark: l.and_then(|l| row[self.resolve(l)]),
-            })
-            .collect()
+        crate::files::in_map_rows(
+            self.detections
+                .iter()
+                .map(|&(scan, det, l)| (scan, det, l.map(|l| self.resolve(l)))),
+            self.landmarks.len(),
+            &self.map_rows(),
+        )
     }
 }
 
