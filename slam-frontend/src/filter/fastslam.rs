@@ -3,18 +3,18 @@
 //! association. 1.0 samples the pose from the motion model; 2.0 folds the
 //! scan's matched observations into the proposal it samples from.
 
-use super::{Choice, Run, candidates, clear_of, innovation, landmark_from, measurement, predict};
+use super::particle::{Landmark, Particle, Step, proposal, push_step, refine};
+use super::{Choice, Run, candidates, clear_of, landmark_from, measurement};
 use crate::color::Color;
 use crate::files::{Association, StampedPose};
 use crate::frontend::align;
 use crate::frontend::association::through_pose;
-use crate::frontend::{FrontEndConfig, Mode, Timing};
+use crate::frontend::{FrontEndConfig, MERGE_RADIUS, Mode, Timing};
 use crate::log::{Detection, Record};
 use crate::motion::compose_jacobians;
 use crate::sighting::{START_AREA, Sighting, View, in_view};
 use crate::track::Cone;
 use cairn_core::SE2;
-use cairn_core::se2::normalize_angle;
 use nalgebra::{Matrix2, Matrix3, SMatrix, Vector2, Vector3};
 use rand::SeedableRng;
 use rand::rngs::StdRng;
@@ -65,54 +65,6 @@ impl ParticleConfig {
             seed: 0,
         }
     }
-}
-
-/// A landmark this close to an older one of a compatible colour after a
-/// loop closure is the same cone (m).
-const DUPLICATE_RADIUS: f64 = 0.7;
-
-#[derive(Clone, Debug)]
-struct Landmark {
-    mean: Vector2<f64>,
-    cov: Matrix2<f64>,
-    removed: bool,
-    sighting: Sighting,
-}
-
-/// One step of a particle's path: its pose after a scan and what each
-/// detection was associated with. Steps are shared between the particles
-/// that descend from the same ancestor.
-#[derive(Debug)]
-struct Step {
-    scan: usize,
-    pose: StampedPose,
-    choices: Box<[Option<u32>]>,
-    parent: Option<Rc<Step>>,
-}
-
-impl Drop for Step {
-    /// Unlinks the chain iteratively: a recursive drop of a long path would
-    /// overflow the stack.
-    fn drop(&mut self) {
-        let mut next = self.parent.take();
-        while let Some(step) = next {
-            match Rc::try_unwrap(step) {
-                Ok(mut step) => next = step.parent.take(),
-                Err(_) => break,
-            }
-        }
-    }
-}
-
-#[derive(Clone, Debug)]
-struct Particle {
-    pose: SE2,
-    log_weight: f64,
-    /// Landmarks shared with other particles until one of them changes.
-    map: Vec<Rc<Landmark>>,
-    path: Option<Rc<Step>>,
-    /// Landmarks that came back at the start of a lap in the last scan.
-    returned: usize,
 }
 
 /// The FastSLAM estimator. Feed it records with [`FastSlam::process`].
@@ -356,7 +308,7 @@ impl FastSlam {
             let color = lm.sighting.color();
             lm.removed = older
                 .iter()
-                .any(|(m, c)| (m - lm.mean).norm() < DUPLICATE_RADIUS && c.compatible(color));
+                .any(|(m, c)| (m - lm.mean).norm() < MERGE_RADIUS && c.compatible(color));
         }
     }
 
@@ -625,70 +577,4 @@ impl FastSlam {
     fn steps(&self) -> impl Iterator<Item = &Step> {
         std::iter::successors(self.best().path.as_deref(), |s| s.parent.as_deref())
     }
-}
-
-fn push_step(p: &mut Particle, scan: usize, pose: StampedPose, choices: Vec<Option<u32>>) {
-    let parent = p.path.take();
-    p.path = Some(Rc::new(Step {
-        scan,
-        pose,
-        choices: choices.into_boxed_slice(),
-        parent,
-    }));
-}
-
-/// FastSLAM 2.0's proposal: the Gaussian over the pose given the motion and
-/// the matched observations, folded in one at a time (each relinearised at
-/// the current mean), sampled with the standard-normal `noise`.
-fn proposal(
-    predicted: &SE2,
-    motion_cov: &Matrix3<f64>,
-    map: &[Rc<Landmark>],
-    choices: &[Choice],
-    measurements: &[(Vector2<f64>, Matrix2<f64>)],
-    noise: &Vector3<f64>,
-) -> SE2 {
-    // A floor keeps Σ invertible when the car stands still.
-    let mut cov = motion_cov + Matrix3::identity() * 1e-10;
-    let mut mean = predicted.to_vector();
-    for (c, (z, r)) in choices.iter().zip(measurements) {
-        let Choice::Landmark(l) = c else { continue };
-        let lm = &map[*l];
-        let at = SE2::from_vector(&mean);
-        let Some(pred) = predict(&at, &lm.mean) else {
-            continue;
-        };
-        let q = pred.h_landmark * lm.cov * pred.h_landmark.transpose() + r;
-        let (Some(q_inv), Some(cov_inv)) = (q.try_inverse(), cov.try_inverse()) else {
-            continue;
-        };
-        let Some(next) = (pred.h_pose.transpose() * q_inv * pred.h_pose + cov_inv).try_inverse()
-        else {
-            continue;
-        };
-        cov = 0.5 * (next + next.transpose());
-        mean += cov * pred.h_pose.transpose() * q_inv * innovation(z, &pred.z);
-        mean[2] = normalize_angle(mean[2]);
-    }
-    let sample = match cov.cholesky() {
-        Some(c) => mean + c.l() * noise,
-        None => mean,
-    };
-    SE2::from_vector(&sample)
-}
-
-/// The landmark's EKF update with a range-bearing measurement from `pose`.
-fn refine(lm: &mut Landmark, pose: &SE2, z: &Vector2<f64>, r: &Matrix2<f64>) {
-    let Some(pred) = predict(pose, &lm.mean) else {
-        return;
-    };
-    let h = pred.h_landmark;
-    let pht = lm.cov * h.transpose();
-    let Some(s_inv) = (h * pht + r).try_inverse() else {
-        return;
-    };
-    let k = pht * s_inv;
-    lm.mean += k * innovation(z, &pred.z);
-    let cov = (Matrix2::identity() - k * h) * lm.cov;
-    lm.cov = 0.5 * (cov + cov.transpose());
 }

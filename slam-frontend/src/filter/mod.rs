@@ -7,6 +7,7 @@
 
 pub mod ekf;
 pub mod fastslam;
+mod particle;
 
 use crate::color::Color;
 use crate::files::Association;

@@ -5,6 +5,12 @@
 
 pub(crate) mod align;
 pub mod association;
+mod calibration;
+mod config;
+mod optimise;
+pub use calibration::Calibration;
+pub use config::FrontEndConfig;
+pub(crate) use optimise::MERGE_RADIUS;
 
 use crate::color::Color;
 use crate::files::{Association, StampedPose};
@@ -12,113 +18,13 @@ use crate::log::{Detection, Record};
 use crate::motion::{Odometry, compose_with_cov};
 use crate::sighting::{Sighting, View, in_view, near_start};
 use crate::track::Cone;
-use association::{AssociationMethod, Candidates, Pair, associate, through_pose};
-use cairn_core::{EdgeSE2, EdgeSE2XY, Graph, SE2};
-use cairn_solvers::{Optimizer, SolverConfig};
+use association::{Candidates, Pair, associate, through_pose};
+use cairn_core::SE2;
 use nalgebra::{Matrix2, Matrix3, SMatrix, Vector2};
 use std::collections::HashMap;
 use std::time::Instant;
 
 pub use crate::motion::{MotionModel, MotionNoise};
-
-/// Settings of the front end.
-#[derive(Clone, Debug)]
-pub struct FrontEndConfig {
-    /// Motion model.
-    pub motion: MotionModel,
-    /// Data association method.
-    pub association: AssociationMethod,
-    /// Assumed detector noise: σ_r = `range_sigma` + `range_sigma_relative`·r.
-    pub range_sigma: f64,
-    /// See `range_sigma`.
-    pub range_sigma_relative: f64,
-    /// Assumed bearing noise σ (rad).
-    pub bearing_sigma: f64,
-    /// Assumed field of view (rad) and range (m), for counting misses.
-    pub fov: f64,
-    /// See `fov`.
-    pub max_range: f64,
-    /// Odometry noise: speed σ (m/s) plus a fraction of the speed, which
-    /// covers the scale bias.
-    pub speed_sigma: f64,
-    /// See `speed_sigma`.
-    pub speed_sigma_relative: f64,
-    /// Yaw-rate σ (rad/s), covering its bias.
-    pub yaw_rate_sigma: f64,
-    /// Model odometry noise as Thrun's rotation–translation–rotation with
-    /// these α₁…α₄ instead of the speed and yaw-rate σ above.
-    pub rot_trans_rot: Option<[f64; 4]>,
-    /// Individual-compatibility gate on the innovation's Mahalanobis χ² (2 dof).
-    pub gate: f64,
-    /// A detection farther than this χ² from every landmark starts a new one;
-    /// between `gate` and this it is ambiguous and rejected.
-    pub new_landmark_gate: f64,
-    /// Penalty added to χ² when the detection's colour contradicts the landmark's.
-    pub color_penalty: f64,
-    /// Sightings before a tentative landmark joins the map.
-    pub confirm_after: u32,
-    /// Landmarks that return after leaving the view, needed in one scan to
-    /// declare a loop closure.
-    pub loop_min_returned: usize,
-    /// After the first loop closure, stop mapping and localise on the map.
-    pub localise_after_loop: bool,
-}
-
-impl Default for FrontEndConfig {
-    fn default() -> Self {
-        Self {
-            motion: MotionModel::Unicycle,
-            association: AssociationMethod::Tracking,
-            range_sigma: 0.05,
-            range_sigma_relative: 0.01,
-            bearing_sigma: 0.5f64.to_radians(),
-            fov: std::f64::consts::PI,
-            max_range: 15.0,
-            speed_sigma: 0.1,
-            speed_sigma_relative: 0.03,
-            yaw_rate_sigma: 0.02,
-            rot_trans_rot: None,
-            gate: 9.21,
-            new_landmark_gate: 25.0,
-            color_penalty: 6.0,
-            confirm_after: 3,
-            loop_min_returned: 4,
-            localise_after_loop: true,
-        }
-    }
-}
-
-impl FrontEndConfig {
-    /// The odometry noise model these settings describe.
-    pub fn motion_noise(&self) -> MotionNoise {
-        match self.rot_trans_rot {
-            Some(alpha) => MotionNoise::RotTransRot { alpha },
-            None => MotionNoise::Velocity {
-                speed_sigma: self.speed_sigma,
-                speed_sigma_relative: self.speed_sigma_relative,
-                yaw_rate_sigma: self.yaw_rate_sigma,
-            },
-        }
-    }
-
-    /// Measurement covariance of a detection in the vehicle frame: the
-    /// log's, or the assumed range and bearing noise.
-    pub fn detection_cov(&self, d: &Detection) -> Matrix2<f64> {
-        if let Some(c) = d.covariance {
-            return c;
-        }
-        let r = d.position.norm();
-        let b = d.position.y.atan2(d.position.x);
-        let j = Matrix2::new(b.cos(), -r * b.sin(), b.sin(), r * b.cos());
-        j * self.range_bearing_cov(r) * j.transpose()
-    }
-
-    /// Assumed covariance of a (range, bearing) measurement at range `r`.
-    pub fn range_bearing_cov(&self, r: f64) -> Matrix2<f64> {
-        let sr = self.range_sigma + self.range_sigma_relative * r;
-        Matrix2::new(sr * sr, 0.0, 0.0, self.bearing_sigma.powi(2))
-    }
-}
 
 /// Mapping or localisation.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -188,53 +94,6 @@ pub struct GraphSlam {
     loop_closures: usize,
     calibration: Calibration,
     timing: Timing,
-}
-
-/// Odometry corrections learnt online from the landmark-corrected poses:
-/// a speed scale and a yaw-rate bias. The presets' 1–3% speed bias and
-/// 0.002–0.01 rad/s yaw-rate bias would otherwise bend and stretch the map
-/// more than the odometry covariance admits.
-#[derive(Clone, Copy, Debug)]
-pub struct Calibration {
-    /// True speed = measured speed × `speed_scale`.
-    pub speed_scale: f64,
-    /// True yaw rate = measured yaw rate − `yaw_rate_bias` (rad/s).
-    pub yaw_rate_bias: f64,
-}
-
-impl Default for Calibration {
-    fn default() -> Self {
-        Self {
-            speed_scale: 1.0,
-            yaw_rate_bias: 0.0,
-        }
-    }
-}
-
-/// How fast the calibration follows each scan's evidence.
-const CALIBRATION_GAIN: f64 = 0.02;
-
-impl Calibration {
-    /// (speed scale, yaw-rate bias), as [`Odometry`] applies them.
-    pub fn correction(&self) -> (f64, f64) {
-        (self.speed_scale, self.yaw_rate_bias)
-    }
-
-    /// Nudges the corrections toward what one scan showed: the odometry
-    /// predicted `pred` from `previous`, the landmarks put the car at `pose`.
-    fn learn(&mut self, previous: &SE2, pred: &SE2, pose: &SE2, dt: f64) {
-        let predicted = previous.between(pred);
-        let corrected = previous.between(pose);
-        let length = predicted.t.norm();
-        if length < 0.1 || dt <= 0.0 {
-            return;
-        }
-        let along = corrected.t.dot(&predicted.t) / length;
-        let ratio = (along / length).clamp(0.8, 1.2);
-        self.speed_scale *= 1.0 + CALIBRATION_GAIN * (ratio - 1.0);
-        let residual = cairn_core::se2::normalize_angle(corrected.theta - predicted.theta);
-        self.yaw_rate_bias -= CALIBRATION_GAIN * residual / dt;
-    }
 }
 
 impl GraphSlam {
@@ -737,109 +596,6 @@ impl GraphSlam {
         }
     }
 
-    /// Full optimisation of the pose/landmark graph on Cairn's solver.
-    pub fn optimise(&mut self) -> Result<(), OptimiseError> {
-        let n = self.poses.len();
-        if n == 0 {
-            return Ok(());
-        }
-        let mut graph = Graph::new();
-        let mut add = || -> Result<Vec<Option<i64>>, cairn_core::GraphError> {
-            for (k, p) in self.poses.iter().enumerate() {
-                graph.add_vertex(k as i64, p.pose)?;
-            }
-            graph.set_fixed(0, true)?;
-            for (k, (delta, info)) in self.odometry.iter().enumerate() {
-                graph.add_edge(k as i64, k as i64 + 1, EdgeSE2::new(*delta), *info)?;
-            }
-            let mut vertex = vec![None; self.landmarks.len()];
-            for (l, lm) in self.landmarks.iter().enumerate() {
-                if lm.sighting.confirmed && !lm.removed && self.alias[l] == l {
-                    vertex[l] = Some((n + l) as i64);
-                    graph.add_vertex((n + l) as i64, lm.mean)?;
-                }
-            }
-            // A cone is seen from dozens of poses; a few sightings spread over
-            // its history fix it as well and keep the Hessian sparse.
-            let mut by_landmark: Vec<Vec<&Observation>> = vec![Vec::new(); self.landmarks.len()];
-            for o in &self.observations {
-                by_landmark[self.resolve(o.landmark)].push(o);
-            }
-            for (l, list) in by_landmark.iter().enumerate() {
-                let Some(v) = vertex[l] else { continue };
-                for o in spread(list, MAX_SIGHTINGS) {
-                    graph.add_edge(o.pose as i64, v, EdgeSE2XY::new(o.z), o.information)?;
-                }
-            }
-            Ok(vertex)
-        };
-        let vertex = add()?;
-        let mut config = SolverConfig {
-            max_iterations: 10,
-            ..SolverConfig::default()
-        };
-        // Landmarks seen from many poses give dense fronts; faer's automatic
-        // choice picks the slower simplicial factorisation here.
-        config.linear.factorization = cairn_solvers::Factorization::Supernodal;
-        let mut optimizer = Optimizer::new(&graph, config)?;
-        optimizer.optimize(&mut graph)?;
-        for (k, p) in self.poses.iter_mut().enumerate() {
-            p.pose = graph.value(k as i64)?;
-        }
-        for (l, v) in vertex.iter().enumerate() {
-            if let Some(v) = v {
-                self.landmarks[l].mean = graph.value(*v)?;
-            }
-        }
-        if let Some(last) = self.poses.last() {
-            self.pose = last.pose;
-        }
-        self.merge_duplicates();
-        Ok(())
-    }
-
-    /// Landmarks of one colour closer than [`MERGE_RADIUS`] are one cone seen twice
-    /// (typically once per lap before the loop closed).
-    fn merge_duplicates(&mut self) {
-        let live: Vec<usize> = (0..self.landmarks.len())
-            .filter(|&l| {
-                self.alias[l] == l
-                    && !self.landmarks[l].removed
-                    && self.landmarks[l].sighting.confirmed
-            })
-            .collect();
-        for (a_pos, &a) in live.iter().enumerate() {
-            if self.alias[a] != a {
-                continue;
-            }
-            for &b in &live[a_pos + 1..] {
-                if self.alias[b] != b {
-                    continue;
-                }
-                let (la, lb) = (&self.landmarks[a], &self.landmarks[b]);
-                if (la.mean - lb.mean).norm() < MERGE_RADIUS
-                    && la.sighting.color().compatible(lb.sighting.color())
-                {
-                    let (keep, drop) = if la.sighting.seen >= lb.sighting.seen {
-                        (a, b)
-                    } else {
-                        (b, a)
-                    };
-                    let dropped = self.landmarks[drop].clone();
-                    let kept = &mut self.landmarks[keep];
-                    for k in 0..5 {
-                        kept.sighting.votes[k] += dropped.sighting.votes[k];
-                    }
-                    kept.sighting.seen += dropped.sighting.seen;
-                    self.alias[drop] = keep;
-                    if drop == a {
-                        break;
-                    }
-                }
-            }
-        }
-    }
-
     /// The landmarks of the map, in output order, with their internal indices.
     fn map_rows(&self) -> Vec<usize> {
         (0..self.landmarks.len())
@@ -881,26 +637,6 @@ impl GraphSlam {
             &self.map_rows(),
         )
     }
-}
-
-/// Landmarks of compatible colours closer than this after a loop closure are one cone (m).
-const MERGE_RADIUS: f64 = 0.7;
-
-/// Sightings per landmark in a full optimisation.
-const MAX_SIGHTINGS: usize = 12;
-
-/// At most `k` items of `list`, evenly spread and including both ends.
-fn spread<'a, T>(list: &'a [T], k: usize) -> impl Iterator<Item = &'a T> + 'a {
-    let n = list.len();
-    let take = n.min(k);
-    (0..take).map(move |i| {
-        let index = if take <= 1 {
-            n - 1
-        } else {
-            i * (n - 1) / (take - 1)
-        };
-        &list[index]
-    })
 }
 
 /// χ² quantile at 99% for `dof` degrees of freedom (Wilson–Hilferty).

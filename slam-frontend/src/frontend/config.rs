@@ -1,0 +1,105 @@
+//! Settings of the graph front end, shared by every estimator.
+
+use super::association::AssociationMethod;
+use crate::log::Detection;
+use crate::motion::{MotionModel, MotionNoise};
+use nalgebra::Matrix2;
+
+/// Settings of the front end.
+#[derive(Clone, Debug)]
+pub struct FrontEndConfig {
+    /// Motion model.
+    pub motion: MotionModel,
+    /// Data association method.
+    pub association: AssociationMethod,
+    /// Assumed detector noise: σ_r = `range_sigma` + `range_sigma_relative`·r.
+    pub range_sigma: f64,
+    /// See `range_sigma`.
+    pub range_sigma_relative: f64,
+    /// Assumed bearing noise σ (rad).
+    pub bearing_sigma: f64,
+    /// Assumed field of view (rad) and range (m), for counting misses.
+    pub fov: f64,
+    /// See `fov`.
+    pub max_range: f64,
+    /// Odometry noise: speed σ (m/s) plus a fraction of the speed, which
+    /// covers the scale bias.
+    pub speed_sigma: f64,
+    /// See `speed_sigma`.
+    pub speed_sigma_relative: f64,
+    /// Yaw-rate σ (rad/s), covering its bias.
+    pub yaw_rate_sigma: f64,
+    /// Model odometry noise as Thrun's rotation–translation–rotation with
+    /// these α₁…α₄ instead of the speed and yaw-rate σ above.
+    pub rot_trans_rot: Option<[f64; 4]>,
+    /// Individual-compatibility gate on the innovation's Mahalanobis χ² (2 dof).
+    pub gate: f64,
+    /// A detection farther than this χ² from every landmark starts a new one;
+    /// between `gate` and this it is ambiguous and rejected.
+    pub new_landmark_gate: f64,
+    /// Penalty added to χ² when the detection's colour contradicts the landmark's.
+    pub color_penalty: f64,
+    /// Sightings before a tentative landmark joins the map.
+    pub confirm_after: u32,
+    /// Landmarks that return after leaving the view, needed in one scan to
+    /// declare a loop closure.
+    pub loop_min_returned: usize,
+    /// After the first loop closure, stop mapping and localise on the map.
+    pub localise_after_loop: bool,
+}
+
+impl Default for FrontEndConfig {
+    fn default() -> Self {
+        Self {
+            motion: MotionModel::Unicycle,
+            association: AssociationMethod::Tracking,
+            range_sigma: 0.05,
+            range_sigma_relative: 0.01,
+            bearing_sigma: 0.5f64.to_radians(),
+            fov: std::f64::consts::PI,
+            max_range: 15.0,
+            speed_sigma: 0.1,
+            speed_sigma_relative: 0.03,
+            yaw_rate_sigma: 0.02,
+            rot_trans_rot: None,
+            gate: 9.21,
+            new_landmark_gate: 25.0,
+            color_penalty: 6.0,
+            confirm_after: 3,
+            loop_min_returned: 4,
+            localise_after_loop: true,
+        }
+    }
+}
+
+impl FrontEndConfig {
+    /// The odometry noise model these settings describe.
+    pub fn motion_noise(&self) -> MotionNoise {
+        match self.rot_trans_rot {
+            Some(alpha) => MotionNoise::RotTransRot { alpha },
+            None => MotionNoise::Velocity {
+                speed_sigma: self.speed_sigma,
+                speed_sigma_relative: self.speed_sigma_relative,
+                yaw_rate_sigma: self.yaw_rate_sigma,
+            },
+        }
+    }
+
+    /// Measurement covariance of a detection in the vehicle frame: the
+    /// log's, or the assumed range and bearing noise.
+    pub fn detection_cov(&self, d: &Detection) -> Matrix2<f64> {
+        if let Some(c) = d.covariance {
+            return c;
+        }
+        let r = d.position.norm();
+        let b = d.position.y.atan2(d.position.x);
+        let j = Matrix2::new(b.cos(), -r * b.sin(), b.sin(), r * b.cos());
+        j * self.range_bearing_cov(r) * j.transpose()
+    }
+
+    /// Assumed covariance of a (range, bearing) measurement at range `r`.
+    pub fn range_bearing_cov(&self, r: f64) -> Matrix2<f64> {
+        let sr = self.range_sigma + self.range_sigma_relative * r;
+        Matrix2::new(sr * sr, 0.0, 0.0, self.bearing_sigma.powi(2))
+    }
+}
