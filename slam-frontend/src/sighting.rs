@@ -15,6 +15,9 @@ pub const NEAR_START: f64 = 12.0;
 /// The shortest loop (m).
 pub const MIN_LOOP: f64 = 60.0;
 
+/// Known-colour sightings before a landmark can be judged of mixed colours.
+const MIXED_AFTER: u32 = 8;
+
 /// Where a landmark stands relative to the car's view.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum View {
@@ -144,10 +147,20 @@ impl Sighting {
         }
     }
 
+    /// Whether the colour votes are split between known colours. A cone's
+    /// colour is misread now and then; an object whose colour keeps
+    /// changing (a sign, a person, a traffic barrel) is clutter, not a cone.
+    pub fn mixed_colours(&self) -> bool {
+        let votes = Color::KNOWN.map(|c| self.votes[c.index()]);
+        let known: u32 = votes.iter().sum();
+        let top = votes.iter().copied().max().unwrap_or(0);
+        known >= MIXED_AFTER && 3 * top < 2 * known
+    }
+
     /// Updates the counts and the view after a scan: `visible` says whether
     /// the landmark should have been seen, `associated` whether it was.
-    /// Returns whether it was missed so often while mapping that it should
-    /// be dropped.
+    /// Returns whether it should be dropped while mapping: missed more often
+    /// than seen, or of [mixed colours](Self::mixed_colours).
     pub fn after_scan(
         &mut self,
         visible: bool,
@@ -156,7 +169,7 @@ impl Sighting {
         scan: usize,
         distance: f64,
     ) -> bool {
-        let mut drop = false;
+        let mut drop = mapping && self.mixed_colours();
         if visible && !associated && mapping {
             self.missed += 1;
             drop = self.missed > self.seen + 1 && !(self.confirmed && self.seen >= 10);

@@ -25,7 +25,7 @@ pub fn place(map: &[(Vector2<f64>, Color)], detections: &[Detection], here: &SE2
     if agree >= needed {
         return Some(*here);
     }
-    align(map, detections)
+    align(map, detections, None)
         .filter(|(_, n)| *n >= needed)
         .map(|(p, _)| p)
 }
@@ -44,17 +44,36 @@ pub fn recognise(
     if old.len() < min_inliers {
         return None;
     }
-    let (aligned, inliers) = align(old, detections)?;
-    let shift = pose.between(&aligned);
-    (inliers >= min_inliers.max(detections.len() / 2)
-        && shift.t.norm() <= 8.0
-        && shift.theta.abs() <= 0.4)
-        .then_some(aligned)
+    // A row of evenly spaced cones fits as well shifted by one spacing, so
+    // a correction of half a spacing or more cannot be told from that.
+    let max_shift = (0.45 * spacing(old)).min(8.0);
+    let (aligned, inliers) = align(old, detections, Some((pose, max_shift)))?;
+    (inliers >= min_inliers.max(detections.len() / 2)).then_some(aligned)
 }
 
+/// Drift expected at the end of a lap, for weighing a candidate alignment
+/// against the pose estimate: position σ (m) and heading σ (rad).
+const DRIFT: (f64, f64) = (2.0, 0.1);
+
 /// The pose that puts most detections on map cones of a compatible colour,
-/// and how many agree.
-pub fn align(map: &[(Vector2<f64>, Color)], detections: &[Detection]) -> Option<(SE2, usize)> {
+/// and how many agree. With a `prior` (pose, largest shift), only poses
+/// within that shift count, and each also pays for its distance from the
+/// prior pose (a Gaussian log-prior with [`DRIFT`] σ).
+pub fn align(
+    map: &[(Vector2<f64>, Color)],
+    detections: &[Detection],
+    prior: Option<(&SE2, f64)>,
+) -> Option<(SE2, usize)> {
+    // Log-prior, or None beyond the largest shift.
+    let prior_score = |pose: &SE2| match prior {
+        None => Some(0.0),
+        Some((p, max_shift)) => {
+            let shift = p.between(pose);
+            (shift.t.norm() <= max_shift && shift.theta.abs() <= 0.4).then(|| {
+                -0.5 * ((shift.t.norm() / DRIFT.0).powi(2) + (shift.theta / DRIFT.1).powi(2))
+            })
+        }
+    };
     let count = |pose: &SE2| {
         detections
             .iter()
@@ -69,7 +88,7 @@ pub fn align(map: &[(Vector2<f64>, Color)], detections: &[Detection]) -> Option<
     let mut near: Vec<&Detection> = detections.iter().collect();
     near.sort_by(|a, b| a.position.norm().total_cmp(&b.position.norm()));
     near.truncate(8);
-    let mut best: Option<(SE2, usize)> = None;
+    let mut best: Option<(SE2, usize, f64)> = None;
     for i in 0..near.len() {
         for j in i + 1..near.len() {
             let (a, b) = (near[i], near[j]);
@@ -86,15 +105,40 @@ pub fn align(map: &[(Vector2<f64>, Color)], detections: &[Detection]) -> Option<
                         continue;
                     }
                     let pose = from_two(a.position, b.position, *p, *q);
+                    let Some(log_prior) = prior_score(&pose) else {
+                        continue;
+                    };
                     let n = count(&pose);
-                    if best.as_ref().is_none_or(|(_, m)| n > *m) {
-                        best = Some((pose, n));
+                    let s = n as f64 + log_prior;
+                    if best.as_ref().is_none_or(|(_, _, b)| s > *b) {
+                        best = Some((pose, n, s));
                     }
                 }
             }
         }
     }
-    best
+    best.map(|(pose, n, _)| (pose, n))
+}
+
+/// Median distance from each cone to the nearest one of a compatible
+/// colour (m); 5 m, the rules' largest spacing, when there are too few.
+fn spacing(map: &[(Vector2<f64>, Color)]) -> f64 {
+    let mut gaps: Vec<f64> = map
+        .iter()
+        .enumerate()
+        .filter_map(|(i, (p, c))| {
+            map.iter()
+                .enumerate()
+                .filter(|&(j, (_, d))| j != i && c.compatible(*d))
+                .map(|(_, (q, _))| (q - p).norm())
+                .min_by(f64::total_cmp)
+        })
+        .collect();
+    if gaps.len() < 3 {
+        return 5.0;
+    }
+    gaps.sort_by(f64::total_cmp);
+    gaps[gaps.len() / 2]
 }
 
 /// The rigid transform taking vehicle points a, b onto world points p, q.

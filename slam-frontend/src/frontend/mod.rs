@@ -8,6 +8,7 @@ pub mod association;
 mod calibration;
 mod config;
 mod optimise;
+mod window;
 pub use calibration::Calibration;
 pub use config::FrontEndConfig;
 pub(crate) use optimise::MERGE_RADIUS;
@@ -41,6 +42,8 @@ struct Landmark {
     cov: Matrix2<f64>,
     removed: bool,
     sighting: Sighting,
+    /// What the poses behind the smoothing window saw of it.
+    prior: window::Prior,
 }
 
 struct Observation {
@@ -94,6 +97,7 @@ pub struct GraphSlam {
     loop_closures: usize,
     calibration: Calibration,
     timing: Timing,
+    window: window::Window,
 }
 
 impl GraphSlam {
@@ -118,6 +122,7 @@ impl GraphSlam {
             loop_closures: 0,
             calibration: Calibration::default(),
             timing: Timing::default(),
+            window: window::Window::default(),
         }
     }
 
@@ -134,6 +139,7 @@ impl GraphSlam {
                 cov,
                 removed: false,
                 sighting: Sighting::known(c.color),
+                prior: window::Prior::default(),
             });
             slam.alias.push(slam.alias.len());
         }
@@ -242,17 +248,21 @@ impl GraphSlam {
         let keyframe = self.poses.len();
         self.poses.push(StampedPose { t, pose });
         if keyframe > 0 {
-            self.odometry.push((delta, nearest_information(&delta_cov)));
+            self.odometry
+                .push((delta, odometry_information(&delta_cov)));
         }
 
         let mut returned = 0;
         let mut associated = vec![false; self.landmarks.len()];
+        let mut taken = vec![false; self.landmarks.len()];
+        for &l in assigned.iter().flatten() {
+            taken[l] = true;
+        }
         for (i, d) in cones.iter().enumerate() {
             let mut landmark = assigned[i];
             if landmark.is_none()
                 && self.mode == Mode::Mapping
-                && nearest[i] > self.config.new_landmark_gate
-                && self.far_from_all(&pose, d)
+                && self.is_new_cone(&pose, d, nearest[i], &taken)
             {
                 landmark = Some(self.new_landmark(&pose, &pose_cov, d, &covs[i], scan));
                 associated.push(true);
@@ -277,10 +287,13 @@ impl GraphSlam {
                 returned += 1;
             }
         }
-        self.count_misses(&pose, &associated, scan);
         if self.mode != Mode::Mapping {
+            self.count_misses(&pose, &associated, scan);
             return;
         }
+        self.smooth_window();
+        let pose = self.pose;
+        self.count_misses(&pose, &associated, scan);
         // A lap ends near where it began; a parallel stretch of track that
         // passes the start area elsewhere must not count.
         let near_start = self
@@ -302,6 +315,17 @@ impl GraphSlam {
             .is_start_area(self.motion.distance(), self.pose.theta)
     }
 
+    /// Whether landmark `l` is a start-area landmark waiting for the lap to
+    /// close. The gates assume the pose and the landmark are known to a few
+    /// centimetres of each other, which a lap of drift breaks: near a cone
+    /// spacing they match the wrong cones and bend the whole loop. So these
+    /// landmarks are matched only through place recognition.
+    fn awaits_loop_closure(&self, l: usize) -> bool {
+        self.mode == Mode::Mapping
+            && self.landmarks[l].sighting.view == View::Left
+            && self.is_start_area(l)
+    }
+
     /// Drift can put returning landmarks outside the association gates, so
     /// the place is also recognised geometrically: the scan is aligned to
     /// the landmarks that left the view long ago, near the current pose.
@@ -320,8 +344,7 @@ impl GraphSlam {
                 self.alias[l] == l
                     && lm.sighting.confirmed
                     && !lm.removed
-                    && lm.sighting.view == View::Left
-                    && self.is_start_area(l)
+                    && self.awaits_loop_closure(l)
                     && (lm.mean - self.pose.t).norm() < reach
             })
             .collect();
@@ -435,13 +458,26 @@ impl GraphSlam {
             .collect()
     }
 
-    /// No live landmark within 0.8 m of the detection: a new cone, not a poorly matched old one.
-    fn far_from_all(&self, pose: &SE2, d: &Detection) -> bool {
+    /// Whether an unmatched detection starts a new landmark: no free live
+    /// landmark lies within 0.8 m (it would be a poorly matched old one),
+    /// and either a landmark this scan already matched does (one landmark
+    /// explains one detection per scan, so this is a second cone beside
+    /// it, like the start's paired big orange cones) or the nearest
+    /// landmark is beyond the new-landmark gate.
+    fn is_new_cone(&self, pose: &SE2, d: &Detection, nearest: f64, taken: &[bool]) -> bool {
         let world = pose.transform_point(&d.position);
-        self.landmarks
-            .iter()
-            .enumerate()
-            .all(|(l, lm)| lm.removed || self.alias[l] != l || (lm.mean - world).norm() > 0.8)
+        let mut beside_taken = false;
+        for (l, lm) in self.landmarks.iter().enumerate() {
+            if lm.removed || self.alias[l] != l || (lm.mean - world).norm() > 0.8 {
+                continue;
+            }
+            // Landmarks made in this scan explain a detection of it too.
+            if !taken.get(l).copied().unwrap_or(true) {
+                return false;
+            }
+            beside_taken = true;
+        }
+        beside_taken || nearest > self.config.new_landmark_gate
     }
 
     fn resolve(&self, mut l: usize) -> usize {
@@ -528,6 +564,7 @@ impl GraphSlam {
             cov: self.world_cov(pose, pose_cov, d, r),
             removed: false,
             sighting: Sighting::new(d.color, scan, self.motion.distance(), pose.theta),
+            prior: window::Prior::default(),
         });
         self.alias.push(self.alias.len());
         self.landmarks.len() - 1
@@ -648,6 +685,20 @@ pub fn chi2_99(dof: usize) -> f64 {
     let z = 2.326_347_874;
     let a = 2.0 / (9.0 * k);
     k * (1.0 - a + z * a.sqrt()).powi(3)
+}
+
+/// Least position σ of an odometry edge (m). The integrated covariance
+/// has next to no lateral term (the model cannot slide sideways), and
+/// edges that claim the lateral motion to a few µm bend the path in the
+/// smoother; 1 mm keeps them honest. (Floors growing with the distance
+/// driven, 0.5–2 cm per metre, measured worse: the lateral constraint is
+/// what carries the heading from scan to scan.)
+const ODOMETRY_FLOOR: f64 = 1e-3;
+
+/// Information of an odometry edge: the integrated covariance with [`ODOMETRY_FLOOR`].
+fn odometry_information(cov: &Matrix3<f64>) -> Matrix3<f64> {
+    let floor = ODOMETRY_FLOOR * ODOMETRY_FLOOR;
+    nearest_information(&(cov + Matrix3::from_diagonal(&nalgebra::Vector3::new(floor, floor, 0.0))))
 }
 
 fn nearest_information(cov: &Matrix3<f64>) -> Matrix3<f64> {

@@ -1,0 +1,297 @@
+//! Fixed-lag smoothing: after every scan the latest [`WINDOW`] poses and the
+//! landmarks they saw are optimised together. Older poses are held fixed and
+//! their sightings become a world-frame prior on each landmark, so the
+//! window keeps the pose–landmark correlations that a pose-only update
+//! drops (without them the heading drifts with the yaw-rate bias on tracks
+//! with sparse cones).
+
+use super::{GraphSlam, Observation};
+use cairn_core::{BinaryEdge, EdgeSE2, EdgeSE2XY, SE2, Variable};
+use nalgebra::{DMatrix, DVector, Matrix2, Matrix3, SMatrix, Vector2, Vector3};
+
+/// Poses optimised per scan (2.5 s at 10 Hz: about how long a cone stays in view).
+pub(super) const WINDOW: usize = 25;
+
+/// Gauss-Newton iterations per scan.
+const ITERATIONS: usize = 2;
+
+/// Huber threshold on a sighting's χ² (2 dof, 99%).
+const HUBER_CHI2: f64 = 9.21;
+
+/// What the fixed poses said about a landmark: world-frame information Λ
+/// and information vector η (the landmark's prior mean is Λ⁻¹η).
+#[derive(Clone, Copy, Debug)]
+pub(super) struct Prior {
+    info: Matrix2<f64>,
+    vector: Vector2<f64>,
+}
+
+impl Default for Prior {
+    fn default() -> Self {
+        Self {
+            info: Matrix2::zeros(),
+            vector: Vector2::zeros(),
+        }
+    }
+}
+
+impl Prior {
+    /// Folds in a sighting `o` from the fixed pose `pose`.
+    fn add(&mut self, pose: &SE2, o: &Observation) {
+        let rot = pose.rotation();
+        let info = rot * o.information * rot.transpose();
+        self.info += info;
+        self.vector += info * pose.transform_point(&o.z);
+    }
+}
+
+/// One sighting inside the window: pose block, landmark slot and the
+/// pose–landmark block of the Hessian.
+struct Coupling {
+    pose: usize,
+    slot: usize,
+    block: SMatrix<f64, 3, 2>,
+}
+
+/// Scratch space, reused from scan to scan.
+#[derive(Default)]
+pub(super) struct Window {
+    /// Landmark → its slot in this window, or `usize::MAX`.
+    slot: Vec<usize>,
+    /// Slot → landmark.
+    members: Vec<usize>,
+    hll: Vec<Matrix2<f64>>,
+    bl: Vec<Vector2<f64>>,
+    couplings: Vec<Coupling>,
+    hpp: DMatrix<f64>,
+    bp: DVector<f64>,
+    /// Sightings before this index are folded into the landmark priors.
+    folded: usize,
+}
+
+impl GraphSlam {
+    /// Re-estimates the poses after `anchor` (held fixed) up to the latest
+    /// keyframe, and the landmarks they saw; sets the pose covariance to the
+    /// latest pose's marginal.
+    pub(super) fn smooth_window(&mut self) {
+        let latest = self.poses.len() - 1;
+        let anchor = latest.saturating_sub(WINDOW);
+        let m = latest - anchor;
+        if m == 0 {
+            return;
+        }
+        self.fold_fixed(anchor);
+        let mut w = std::mem::take(&mut self.window);
+        self.gather(&mut w);
+        for _ in 0..ITERATIONS {
+            self.linearise(&mut w, anchor, m);
+            let Some(step) = w.solve(m) else { break };
+            self.apply(&w, anchor, m, &step);
+        }
+        self.linearise(&mut w, anchor, m);
+        if let Some(cov) = w.latest_covariance(m) {
+            self.pose_cov = cov;
+        }
+        self.pose = self.poses[latest].pose;
+        for &l in &w.members {
+            w.slot[l] = usize::MAX;
+        }
+        self.window = w;
+    }
+
+    /// Sightings from poses at or before `anchor` become landmark priors.
+    fn fold_fixed(&mut self, anchor: usize) {
+        while let Some(o) = self.observations.get(self.window.folded)
+            && o.pose <= anchor
+        {
+            let l = self.resolve(o.landmark);
+            self.landmarks[l].prior.add(&self.poses[o.pose].pose, o);
+            self.window.folded += 1;
+        }
+    }
+
+    /// The landmarks seen inside the window that take part: live ones seen
+    /// at least twice (a single sighting says nothing about the pose).
+    fn gather(&self, w: &mut Window) {
+        w.slot.resize(self.landmarks.len(), usize::MAX);
+        w.members.clear();
+        for o in &self.observations[w.folded..] {
+            let l = self.resolve(o.landmark);
+            let lm = &self.landmarks[l];
+            if w.slot[l] == usize::MAX && !lm.removed && lm.sighting.seen >= 2 {
+                w.slot[l] = w.members.len();
+                w.members.push(l);
+            }
+        }
+    }
+
+    /// Builds the normal equations H δ = b at the current estimate.
+    fn linearise(&self, w: &mut Window, anchor: usize, m: usize) {
+        let n = 3 * m;
+        if w.hpp.nrows() != n {
+            w.hpp = DMatrix::zeros(n, n);
+            w.bp = DVector::zeros(n);
+        }
+        w.hpp.fill(0.0);
+        w.bp.fill(0.0);
+        w.couplings.clear();
+        w.hll.clear();
+        w.bl.clear();
+        for &l in &w.members {
+            let lm = &self.landmarks[l];
+            w.hll.push(lm.prior.info);
+            w.bl.push(lm.prior.vector - lm.prior.info * lm.mean);
+        }
+        // Odometry: edge k joins poses k and k + 1; block i is pose anchor + 1 + i.
+        for k in anchor..anchor + m {
+            let (delta, info) = &self.odometry[k];
+            let edge = EdgeSE2::new(*delta);
+            let (xi, xj) = (&self.poses[k].pose, &self.poses[k + 1].pose);
+            let e = edge.error(xi, xj);
+            let (ji, jj) = edge.jacobians(xi, xj);
+            let j = 3 * (k - anchor);
+            add_block(&mut w.hpp, j, j, &(jj.transpose() * info * jj));
+            add_vec(&mut w.bp, j, &(-(jj.transpose() * info * e)));
+            if k > anchor {
+                let i = j - 3;
+                let hij = ji.transpose() * info * jj;
+                add_block(&mut w.hpp, i, i, &(ji.transpose() * info * ji));
+                add_block(&mut w.hpp, i, j, &hij);
+                add_block(&mut w.hpp, j, i, &hij.transpose());
+                add_vec(&mut w.bp, i, &(-(ji.transpose() * info * e)));
+            }
+        }
+        for o in &self.observations[w.folded..] {
+            let l = self.resolve(o.landmark);
+            let slot = w.slot[l];
+            if slot == usize::MAX {
+                continue;
+            }
+            let edge = EdgeSE2XY::new(o.z);
+            let (x, mean) = (&self.poses[o.pose].pose, &self.landmarks[l].mean);
+            let e = edge.error(x, mean);
+            let (jx, jl) = edge.jacobians(x, mean);
+            let chi2 = (e.transpose() * o.information * e)[(0, 0)];
+            let weight = if chi2 > HUBER_CHI2 {
+                (HUBER_CHI2 / chi2).sqrt()
+            } else {
+                1.0
+            };
+            let info = o.information * weight;
+            let p = 3 * (o.pose - anchor - 1);
+            add_block(&mut w.hpp, p, p, &(jx.transpose() * info * jx));
+            add_vec(&mut w.bp, p, &(-(jx.transpose() * info * e)));
+            w.hll[slot] += jl.transpose() * info * jl;
+            w.bl[slot] -= jl.transpose() * info * e;
+            w.couplings.push(Coupling {
+                pose: o.pose - anchor - 1,
+                slot,
+                block: jx.transpose() * info * jl,
+            });
+        }
+        w.couplings.sort_unstable_by_key(|c| c.slot);
+    }
+
+    fn apply(
+        &mut self,
+        w: &Window,
+        anchor: usize,
+        m: usize,
+        step: &(DVector<f64>, Vec<Vector2<f64>>),
+    ) {
+        let (dp, dl) = step;
+        for i in 0..m {
+            let pose = &mut self.poses[anchor + 1 + i].pose;
+            *pose = pose.oplus(&Vector3::new(dp[3 * i], dp[3 * i + 1], dp[3 * i + 2]));
+        }
+        for (slot, &l) in w.members.iter().enumerate() {
+            self.landmarks[l].mean += dl[slot];
+        }
+    }
+}
+
+impl Window {
+    /// Eliminates the landmarks (Schur complement), solves for the poses and
+    /// back-substitutes. `None` if the reduced system is not positive definite.
+    fn solve(&mut self, m: usize) -> Option<(DVector<f64>, Vec<Vector2<f64>>)> {
+        let inverses = self.landmark_inverses()?;
+        let mut s = self.reduced(&inverses);
+        let mut b = self.bp.clone();
+        for group in self.couplings.chunk_by(|a, c| a.slot == c.slot) {
+            let slot = group[0].slot;
+            let y = inverses[slot] * self.bl[slot];
+            for c in group {
+                sub_vec(&mut b, 3 * c.pose, &(c.block * y));
+            }
+        }
+        let chol = std::mem::take(&mut s).cholesky()?;
+        let dp = chol.solve(&b);
+        let mut dl = Vec::with_capacity(self.bl.len());
+        for (slot, bl) in self.bl.iter().enumerate() {
+            dl.push(inverses[slot] * bl);
+        }
+        for c in &self.couplings {
+            let x = dp.fixed_rows::<3>(3 * c.pose);
+            dl[c.slot] -= inverses[c.slot] * (c.block.transpose() * x);
+        }
+        debug_assert_eq!(dp.len(), 3 * m);
+        Some((dp, dl))
+    }
+
+    fn landmark_inverses(&self) -> Option<Vec<Matrix2<f64>>> {
+        self.hll
+            .iter()
+            .map(|h| (h + Matrix2::identity() * 1e-9).try_inverse())
+            .collect()
+    }
+
+    /// S = Hpp − Σ Hpl Hll⁻¹ Hlp.
+    fn reduced(&self, inverses: &[Matrix2<f64>]) -> DMatrix<f64> {
+        let mut s = self.hpp.clone();
+        for group in self.couplings.chunk_by(|a, c| a.slot == c.slot) {
+            let inv = inverses[group[0].slot];
+            for a in group {
+                let left = a.block * inv;
+                for c in group {
+                    let block = -(left * c.block.transpose());
+                    add_block(&mut s, 3 * a.pose, 3 * c.pose, &block);
+                }
+            }
+        }
+        s
+    }
+
+    /// Marginal covariance of the latest pose: the last 3×3 block of S⁻¹.
+    fn latest_covariance(&self, m: usize) -> Option<Matrix3<f64>> {
+        let inverses = self.landmark_inverses()?;
+        let chol = self.reduced(&inverses).cholesky()?;
+        let n = 3 * m;
+        let mut rhs = DMatrix::zeros(n, 3);
+        for k in 0..3 {
+            rhs[(n - 3 + k, k)] = 1.0;
+        }
+        let x = chol.solve(&rhs);
+        let cov: Matrix3<f64> = x.fixed_view::<3, 3>(n - 3, 0).into_owned();
+        Some(0.5 * (cov + cov.transpose()))
+    }
+}
+
+fn add_block<const R: usize, const C: usize>(
+    h: &mut DMatrix<f64>,
+    row: usize,
+    col: usize,
+    block: &SMatrix<f64, R, C>,
+) {
+    let mut view = h.fixed_view_mut::<R, C>(row, col);
+    view += block;
+}
+
+fn add_vec(b: &mut DVector<f64>, row: usize, v: &Vector3<f64>) {
+    let mut view = b.fixed_rows_mut::<3>(row);
+    view += v;
+}
+
+fn sub_vec(b: &mut DVector<f64>, row: usize, v: &Vector3<f64>) {
+    let mut view = b.fixed_rows_mut::<3>(row);
+    view -= v;
+}
