@@ -12,9 +12,6 @@ use nalgebra::{DMatrix, DVector, Matrix2, Matrix3, SMatrix, Vector2, Vector3};
 /// Poses optimised per scan (2.5 s at 10 Hz: about how long a cone stays in view).
 pub(super) const WINDOW: usize = 25;
 
-/// Gauss-Newton iterations per scan.
-const ITERATIONS: usize = 2;
-
 /// Huber threshold on a sighting's χ² (2 dof, 99%).
 const HUBER_CHI2: f64 = 9.21;
 
@@ -83,14 +80,12 @@ impl GraphSlam {
         self.fold_fixed(anchor);
         let mut w = std::mem::take(&mut self.window);
         self.gather(&mut w);
-        for _ in 0..ITERATIONS {
-            self.linearise(&mut w, anchor, m);
-            let Some(step) = w.solve(m) else { break };
-            self.apply(&w, anchor, m, &step);
-        }
+        // One Gauss-Newton step: the estimate starts at the previous scan's
+        // solution, and more steps measured no different.
         self.linearise(&mut w, anchor, m);
-        if let Some(cov) = w.latest_covariance(m) {
-            self.pose_cov = cov;
+        if let Some(step) = w.solve(m) {
+            self.apply(&w, anchor, m, &step);
+            self.pose_cov = step.latest_cov;
         }
         self.pose = self.poses[latest].pose;
         for &l in &w.members {
@@ -192,14 +187,8 @@ impl GraphSlam {
         w.couplings.sort_unstable_by_key(|c| c.slot);
     }
 
-    fn apply(
-        &mut self,
-        w: &Window,
-        anchor: usize,
-        m: usize,
-        step: &(DVector<f64>, Vec<Vector2<f64>>),
-    ) {
-        let (dp, dl) = step;
+    fn apply(&mut self, w: &Window, anchor: usize, m: usize, step: &Step) {
+        let (dp, dl) = (&step.poses, &step.landmarks);
         for i in 0..m {
             let pose = &mut self.poses[anchor + 1 + i].pose;
             *pose = pose.oplus(&Vector3::new(dp[3 * i], dp[3 * i + 1], dp[3 * i + 2]));
@@ -210,12 +199,20 @@ impl GraphSlam {
     }
 }
 
+/// The solution of one linearised window.
+struct Step {
+    poses: DVector<f64>,
+    landmarks: Vec<Vector2<f64>>,
+    /// Marginal covariance of the latest pose: the last 3×3 block of S⁻¹.
+    latest_cov: Matrix3<f64>,
+}
+
 impl Window {
     /// Eliminates the landmarks (Schur complement), solves for the poses and
     /// back-substitutes. `None` if the reduced system is not positive definite.
-    fn solve(&mut self, m: usize) -> Option<(DVector<f64>, Vec<Vector2<f64>>)> {
+    fn solve(&mut self, m: usize) -> Option<Step> {
         let inverses = self.landmark_inverses()?;
-        let mut s = self.reduced(&inverses);
+        self.reduce(&inverses);
         let mut b = self.bp.clone();
         for group in self.couplings.chunk_by(|a, c| a.slot == c.slot) {
             let slot = group[0].slot;
@@ -224,8 +221,17 @@ impl Window {
                 sub_vec(&mut b, 3 * c.pose, &(c.block * y));
             }
         }
-        let chol = std::mem::take(&mut s).cholesky()?;
+        let chol = std::mem::take(&mut self.hpp).cholesky()?;
         let dp = chol.solve(&b);
+        let n = 3 * m;
+        let mut unit = DMatrix::zeros(n, 3);
+        for k in 0..3 {
+            unit[(n - 3 + k, k)] = 1.0;
+        }
+        let columns = chol.solve(&unit);
+        let cov: Matrix3<f64> = columns.fixed_view::<3, 3>(n - 3, 0).into_owned();
+        // The factor's storage is the next scan's Hessian.
+        self.hpp = chol.unpack();
         let mut dl = Vec::with_capacity(self.bl.len());
         for (slot, bl) in self.bl.iter().enumerate() {
             dl.push(inverses[slot] * bl);
@@ -234,8 +240,11 @@ impl Window {
             let x = dp.fixed_rows::<3>(3 * c.pose);
             dl[c.slot] -= inverses[c.slot] * (c.block.transpose() * x);
         }
-        debug_assert_eq!(dp.len(), 3 * m);
-        Some((dp, dl))
+        Some(Step {
+            poses: dp,
+            landmarks: dl,
+            latest_cov: 0.5 * (cov + cov.transpose()),
+        })
     }
 
     fn landmark_inverses(&self) -> Option<Vec<Matrix2<f64>>> {
@@ -245,34 +254,19 @@ impl Window {
             .collect()
     }
 
-    /// S = Hpp − Σ Hpl Hll⁻¹ Hlp.
-    fn reduced(&self, inverses: &[Matrix2<f64>]) -> DMatrix<f64> {
-        let mut s = self.hpp.clone();
+    /// Hpp becomes the Schur complement S = Hpp − Σ Hpl Hll⁻¹ Hlp.
+    fn reduce(&mut self, inverses: &[Matrix2<f64>]) {
+        let s = &mut self.hpp;
         for group in self.couplings.chunk_by(|a, c| a.slot == c.slot) {
             let inv = inverses[group[0].slot];
             for a in group {
                 let left = a.block * inv;
                 for c in group {
                     let block = -(left * c.block.transpose());
-                    add_block(&mut s, 3 * a.pose, 3 * c.pose, &block);
+                    add_block(s, 3 * a.pose, 3 * c.pose, &block);
                 }
             }
         }
-        s
-    }
-
-    /// Marginal covariance of the latest pose: the last 3×3 block of S⁻¹.
-    fn latest_covariance(&self, m: usize) -> Option<Matrix3<f64>> {
-        let inverses = self.landmark_inverses()?;
-        let chol = self.reduced(&inverses).cholesky()?;
-        let n = 3 * m;
-        let mut rhs = DMatrix::zeros(n, 3);
-        for k in 0..3 {
-            rhs[(n - 3 + k, k)] = 1.0;
-        }
-        let x = chol.solve(&rhs);
-        let cov: Matrix3<f64> = x.fixed_view::<3, 3>(n - 3, 0).into_owned();
-        Some(0.5 * (cov + cov.transpose()))
     }
 }
 
