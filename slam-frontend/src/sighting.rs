@@ -192,3 +192,29 @@ pub fn in_view(config: &FrontEndConfig, pose_inverse: &SE2, point: &Vector2<f64>
 pub fn near_start(first: &SE2, pose: &SE2) -> bool {
     (first.t - pose.t).norm() < NEAR_START && normalize_angle(first.theta - pose.theta).abs() < 0.8
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn a_cone_misread_now_and_then_is_not_clutter_but_a_colour_flipping_object_is() {
+        let mut cone = Sighting::new(Color::Blue, 0, 0.0, 0.0);
+        let mut clutter = cone.clone();
+        for k in 0..20 {
+            cone.count(if k == 7 { Color::Yellow } else { Color::Blue }, 3);
+            let flip = [Color::Blue, Color::Yellow, Color::Unknown][k % 3];
+            clutter.count(flip, 3);
+            assert!(!cone.mixed_colours(), "after {k}: {cone:?}");
+        }
+        assert!(clutter.mixed_colours(), "{clutter:?}");
+        // Too few known-colour votes to judge.
+        let mut young = Sighting::new(Color::Blue, 0, 0.0, 0.0);
+        young.count(Color::Yellow, 3);
+        young.count(Color::Blue, 3);
+        assert!(!young.mixed_colours());
+        // Dropped only while mapping.
+        assert!(clutter.after_scan(false, false, true, 30, 0.0));
+        assert!(!clutter.after_scan(false, false, false, 31, 0.0));
+    }
+}

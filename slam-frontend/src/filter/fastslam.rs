@@ -277,6 +277,8 @@ impl FastSlam {
             cones,
             &particle.pose,
             self.run.config.loop_min_returned,
+            // A particle's drift can exceed half a cone spacing.
+            align::MAX_SHIFT,
         )
     }
 

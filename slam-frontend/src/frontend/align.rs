@@ -35,18 +35,17 @@ pub fn place(map: &[(Vector2<f64>, Color)], detections: &[Detection], here: &SE2
 /// least `min_inliers` detections (and half the scan) agree. Drift can put
 /// returning landmarks outside the association gates; this finds them
 /// geometrically.
+/// The correction from `pose` is at most `max_shift` metres.
 pub fn recognise(
     old: &[(Vector2<f64>, Color)],
     detections: &[Detection],
     pose: &SE2,
     min_inliers: usize,
+    max_shift: f64,
 ) -> Option<SE2> {
     if old.len() < min_inliers {
         return None;
     }
-    // A row of evenly spaced cones fits as well shifted by one spacing, so
-    // a correction of half a spacing or more cannot be told from that.
-    let max_shift = (0.45 * spacing(old)).min(8.0);
     let (aligned, inliers) = align(old, detections, Some((pose, max_shift)))?;
     (inliers >= min_inliers.max(detections.len() / 2)).then_some(aligned)
 }
@@ -120,6 +119,16 @@ pub fn align(
     best.map(|(pose, n, _)| (pose, n))
 }
 
+/// Largest correction place recognition should make on `map` (m). A row
+/// of evenly spaced cones fits as well shifted by one spacing, so a
+/// correction of half a spacing or more cannot be told from that.
+pub fn unambiguous_shift(map: &[(Vector2<f64>, Color)]) -> f64 {
+    0.45 * spacing(map)
+}
+
+/// Largest correction when the drift may exceed half a cone spacing (m).
+pub const MAX_SHIFT: f64 = 8.0;
+
 /// Median distance from each cone to the nearest one of a compatible
 /// colour (m); 5 m, the rules' largest spacing, when there are too few.
 fn spacing(map: &[(Vector2<f64>, Color)]) -> f64 {
@@ -150,4 +159,64 @@ fn from_two(a: Vector2<f64>, b: Vector2<f64>, p: Vector2<f64>, q: Vector2<f64>) 
     let mid_world = 0.5 * (p + q);
     let t = mid_world - rot * mid_local;
     SE2::new(t.x, t.y, theta)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// Two rows of cones 3 m apart along x, blue left and yellow right.
+    fn row() -> Vec<(Vector2<f64>, Color)> {
+        (0..8)
+            .flat_map(|i| {
+                let x = 3.0 * i as f64;
+                [
+                    (Vector2::new(x, 1.5), Color::Blue),
+                    (Vector2::new(x, -1.5), Color::Yellow),
+                ]
+            })
+            .collect()
+    }
+
+    /// What a car at `pose` sees of `map` within 10 m ahead.
+    fn scan(map: &[(Vector2<f64>, Color)], pose: &SE2) -> Vec<Detection> {
+        let inverse = pose.inverse();
+        map.iter()
+            .map(|(p, c)| (inverse.transform_point(p), *c))
+            .filter(|(local, _)| local.x > 0.5 && local.norm() < 10.0)
+            .map(|(position, color)| Detection {
+                position,
+                range_bearing: None,
+                color,
+                id: None,
+                covariance: None,
+            })
+            .collect()
+    }
+
+    #[test]
+    fn the_spacing_of_a_row_is_its_cone_gap() {
+        assert!((spacing(&row()) - 3.0).abs() < 1e-9);
+        assert!((unambiguous_shift(&row()) - 1.35).abs() < 1e-9);
+        assert_eq!(spacing(&row()[..2]), 5.0);
+    }
+
+    #[test]
+    fn recognition_takes_the_fit_nearest_the_drifted_pose() {
+        let map = row();
+        let truth = SE2::new(4.0, 0.2, 0.02);
+        let detections = scan(&map, &truth);
+        // Every shift by a whole spacing fits as many cones as the truth
+        // or nearly; the prior must pick the truth, 0.8 m from the estimate.
+        let drifted = SE2::new(4.8, 0.1, 0.0);
+        let found = recognise(&map, &detections, &drifted, 4, MAX_SHIFT).unwrap();
+        assert!((found.t - truth.t).norm() < 1e-6, "{found:?}");
+        assert!((found.theta - truth.theta).abs() < 1e-6, "{found:?}");
+        // Drift of half a spacing (either fit 1.5 m away) is refused when
+        // asked to be sure.
+        let far = SE2::new(5.5, 0.2, 0.02);
+        let limit = unambiguous_shift(&map);
+        assert!(recognise(&map, &detections, &far, 4, limit).is_none());
+        assert!(recognise(&map, &detections, &drifted, 4, limit).is_some());
+    }
 }

@@ -353,7 +353,11 @@ impl GraphSlam {
             .map(|&l| (self.landmarks[l].mean, self.landmarks[l].sighting.color()))
             .collect();
         let min_inliers = self.config.loop_min_returned;
-        let Some(aligned) = align::recognise(&map, cones, &self.pose, min_inliers) else {
+        // The smoother keeps drift well under half a cone spacing, and a
+        // larger correction could as well be one spacing off.
+        let max_shift = align::unambiguous_shift(&map).min(align::MAX_SHIFT);
+        let Some(aligned) = align::recognise(&map, cones, &self.pose, min_inliers, max_shift)
+        else {
             return false;
         };
         let first = self.detections.len() - cones.len();
