@@ -63,6 +63,7 @@ impl GraphSlam {
         if let Some(last) = self.poses.last() {
             self.pose = last.pose;
         }
+        self.refold();
         self.merge_duplicates();
         Ok(())
     }

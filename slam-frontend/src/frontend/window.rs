@@ -94,6 +94,15 @@ impl GraphSlam {
         self.window = w;
     }
 
+    /// Forgets the landmark priors, to be folded again from the poses as
+    /// they now stand (after a full optimisation moved them).
+    pub(super) fn refold(&mut self) {
+        for lm in &mut self.landmarks {
+            lm.prior = Prior::default();
+        }
+        self.window.folded = 0;
+    }
+
     /// Sightings from poses at or before `anchor` become landmark priors.
     fn fold_fixed(&mut self, anchor: usize) {
         while let Some(o) = self.observations.get(self.window.folded)
@@ -120,7 +129,8 @@ impl GraphSlam {
         }
     }
 
-    /// Builds the normal equations H δ = b at the current estimate.
+    /// Builds the normal equations H δ = b at the current estimate (the
+    /// pose block's lower triangle).
     fn linearise(&self, w: &mut Window, anchor: usize, m: usize) {
         let n = 3 * m;
         if w.hpp.nrows() != n {
@@ -151,7 +161,6 @@ impl GraphSlam {
                 let i = j - 3;
                 let hij = ji.transpose() * info * jj;
                 add_block(&mut w.hpp, i, i, &(ji.transpose() * info * ji));
-                add_block(&mut w.hpp, i, j, &hij);
                 add_block(&mut w.hpp, j, i, &hij.transpose());
                 add_vec(&mut w.bp, i, &(-(ji.transpose() * info * e)));
             }
@@ -254,14 +263,16 @@ impl Window {
             .collect()
     }
 
-    /// Hpp becomes the Schur complement S = Hpp − Σ Hpl Hll⁻¹ Hlp.
+    /// Hpp becomes the Schur complement S = Hpp − Σ Hpl Hll⁻¹ Hlp (lower
+    /// triangle).
     fn reduce(&mut self, inverses: &[Matrix2<f64>]) {
         let s = &mut self.hpp;
         for group in self.couplings.chunk_by(|a, c| a.slot == c.slot) {
             let inv = inverses[group[0].slot];
             for a in group {
                 let left = a.block * inv;
-                for c in group {
+                // The Cholesky reads the lower triangle only.
+                for c in group.iter().filter(|c| c.pose <= a.pose) {
                     let block = -(left * c.block.transpose());
                     add_block(s, 3 * a.pose, 3 * c.pose, &block);
                 }
