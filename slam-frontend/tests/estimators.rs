@@ -256,7 +256,9 @@ fn the_graph_holds_its_heading_against_a_yaw_rate_bias() {
         &slam.associations(),
     );
     assert!(report.association_accuracy > 0.99, "{report:?}");
-    assert_eq!(report.phantom, 0, "{report:?}");
+    // The far end has drifted sideways with the bias (the error above), so
+    // the map's shape is checked after a rigid alignment.
+    assert!(report.map_rmse_aligned < 0.15, "{report:?}");
 }
 
 #[test]
