@@ -7,17 +7,18 @@ pub(crate) mod align;
 pub mod association;
 mod calibration;
 mod config;
+mod landmarks;
+mod loop_closure;
 mod optimise;
 mod window;
 pub use calibration::Calibration;
 pub use config::FrontEndConfig;
 pub(crate) use optimise::MERGE_RADIUS;
 
-use crate::color::Color;
 use crate::files::{Association, StampedPose};
 use crate::log::{Detection, Record};
 use crate::motion::{Odometry, compose_with_cov};
-use crate::sighting::{Sighting, View, in_view, near_start};
+use crate::sighting::{Sighting, near_start};
 use crate::track::Cone;
 use association::{Candidates, Pair, associate, through_pose};
 use cairn_core::SE2;
@@ -308,98 +309,6 @@ impl GraphSlam {
         }
     }
 
-    /// Whether landmark `l` marks the start of the lap ([`Sighting::is_start_area`]).
-    fn is_start_area(&self, l: usize) -> bool {
-        self.landmarks[l]
-            .sighting
-            .is_start_area(self.motion.distance(), self.pose.theta)
-    }
-
-    /// Whether landmark `l` is a start-area landmark waiting for the lap to
-    /// close. The gates assume the pose and the landmark are known to a few
-    /// centimetres of each other, which a lap of drift breaks: near a cone
-    /// spacing they match the wrong cones and bend the whole loop. So these
-    /// landmarks are matched only through place recognition.
-    fn awaits_loop_closure(&self, l: usize) -> bool {
-        self.mode == Mode::Mapping
-            && self.landmarks[l].sighting.view == View::Left
-            && self.is_start_area(l)
-    }
-
-    /// Drift can put returning landmarks outside the association gates, so
-    /// the place is also recognised geometrically: the scan is aligned to
-    /// the landmarks that left the view long ago, near the current pose.
-    /// When enough detections agree, they are tied to those landmarks,
-    /// which closes the loop in the graph.
-    fn recognise_place(
-        &mut self,
-        cones: &[Detection],
-        covs: &[Matrix2<f64>],
-        keyframe: usize,
-    ) -> bool {
-        let reach = self.config.max_range + 5.0;
-        let old: Vec<usize> = (0..self.landmarks.len())
-            .filter(|&l| {
-                let lm = &self.landmarks[l];
-                self.alias[l] == l
-                    && lm.sighting.confirmed
-                    && !lm.removed
-                    && self.awaits_loop_closure(l)
-                    && (lm.mean - self.pose.t).norm() < reach
-            })
-            .collect();
-        let map: Vec<(Vector2<f64>, Color)> = old
-            .iter()
-            .map(|&l| (self.landmarks[l].mean, self.landmarks[l].sighting.color()))
-            .collect();
-        let min_inliers = self.config.loop_min_returned;
-        // The smoother keeps drift well under half a cone spacing, and a
-        // larger correction could as well be one spacing off.
-        let max_shift = align::unambiguous_shift(&map).min(align::MAX_SHIFT);
-        let Some(aligned) = align::recognise(&map, cones, &self.pose, min_inliers, max_shift)
-        else {
-            return false;
-        };
-        let first = self.detections.len() - cones.len();
-        for (i, d) in cones.iter().enumerate() {
-            let w = aligned.transform_point(&d.position);
-            let nearest = old
-                .iter()
-                .map(|&l| (l, (self.landmarks[l].mean - w).norm()))
-                .min_by(|a, b| a.1.total_cmp(&b.1));
-            if let Some((l, dist)) = nearest
-                && dist < 0.6
-            {
-                self.observations.push(Observation {
-                    pose: keyframe,
-                    landmark: l,
-                    z: d.position,
-                    information: nearest_information2(&covs[i]),
-                });
-                self.detections[first + i].2 = Some(l);
-                self.landmarks[l].sighting.view = View::Returned;
-            }
-        }
-        true
-    }
-
-    /// Places the car on the given map ([`align::place`]).
-    fn align_to_map(&mut self, cones: &[Detection]) -> bool {
-        let map: Vec<(Vector2<f64>, Color)> = self
-            .landmarks
-            .iter()
-            .map(|l| (l.mean, l.sighting.color()))
-            .collect();
-        let here = self.pose.compose(&self.motion.pending());
-        let found = align::place(&map, cones, &here);
-        let Some(pose) = found else { return false };
-        self.pose = pose;
-        self.pose_cov = Matrix3::from_diagonal(&nalgebra::Vector3::new(0.25, 0.25, 0.05));
-        self.motion.take();
-        self.aligned = true;
-        true
-    }
-
     /// Individually compatible landmarks for every detection, best first,
     /// and the χ² of the nearest landmark even when it fails the gate.
     fn candidates(
@@ -462,28 +371,6 @@ impl GraphSlam {
             .collect()
     }
 
-    /// Whether an unmatched detection starts a new landmark: no free live
-    /// landmark lies within 0.8 m (it would be a poorly matched old one),
-    /// and either a landmark this scan already matched does (one landmark
-    /// explains one detection per scan, so this is a second cone beside
-    /// it, like the start's paired big orange cones) or the nearest
-    /// landmark is beyond the new-landmark gate.
-    fn is_new_cone(&self, pose: &SE2, d: &Detection, nearest: f64, taken: &[bool]) -> bool {
-        let world = pose.transform_point(&d.position);
-        let mut beside_taken = false;
-        for (l, lm) in self.landmarks.iter().enumerate() {
-            if lm.removed || self.alias[l] != l || (lm.mean - world).norm() > 0.8 {
-                continue;
-            }
-            // Landmarks made in this scan explain a detection of it too.
-            if !taken.get(l).copied().unwrap_or(true) {
-                return false;
-            }
-            beside_taken = true;
-        }
-        beside_taken || nearest > self.config.new_landmark_gate
-    }
-
     fn resolve(&self, mut l: usize) -> usize {
         while self.alias[l] != l {
             l = self.alias[l];
@@ -537,104 +424,6 @@ impl GraphSlam {
         }
         let cov = h.try_inverse().unwrap_or(*pred_cov);
         (SE2::from_vector(&x), 0.5 * (cov + cov.transpose()))
-    }
-
-    fn world_cov(
-        &self,
-        pose: &SE2,
-        pose_cov: &Matrix3<f64>,
-        d: &Detection,
-        r: &Matrix2<f64>,
-    ) -> Matrix2<f64> {
-        let rot = pose.rotation();
-        let dr = Matrix2::new(0.0, -1.0, 1.0, 0.0) * rot;
-        let mut j = SMatrix::<f64, 2, 3>::zeros();
-        j.fixed_view_mut::<2, 2>(0, 0)
-            .copy_from(&Matrix2::identity());
-        j.fixed_view_mut::<2, 1>(0, 2).copy_from(&(dr * d.position));
-        rot * r * rot.transpose() + j * pose_cov * j.transpose()
-    }
-
-    fn new_landmark(
-        &mut self,
-        pose: &SE2,
-        pose_cov: &Matrix3<f64>,
-        d: &Detection,
-        r: &Matrix2<f64>,
-        scan: usize,
-    ) -> usize {
-        self.landmarks.push(Landmark {
-            mean: pose.transform_point(&d.position),
-            cov: self.world_cov(pose, pose_cov, d, r),
-            removed: false,
-            sighting: Sighting::new(d.color, scan, self.motion.distance(), pose.theta),
-            prior: window::Prior::default(),
-        });
-        self.alias.push(self.alias.len());
-        self.landmarks.len() - 1
-    }
-
-    /// The landmark's own EKF: a direct, world-frame observation of a static point.
-    fn refine(
-        &mut self,
-        l: usize,
-        pose: &SE2,
-        pose_cov: &Matrix3<f64>,
-        d: &Detection,
-        r: &Matrix2<f64>,
-    ) {
-        let z = pose.transform_point(&d.position);
-        let rw = self.world_cov(pose, pose_cov, d, r);
-        let lm = &mut self.landmarks[l];
-        if lm.sighting.seen > 0
-            && let Some(inv) = (lm.cov + rw).try_inverse()
-        {
-            let k = lm.cov * inv;
-            lm.mean += k * (z - lm.mean);
-            lm.cov = (Matrix2::identity() - k) * lm.cov;
-            lm.cov = 0.5 * (lm.cov + lm.cov.transpose());
-        }
-        lm.sighting.count(d.color, self.config.confirm_after);
-    }
-
-    /// Counts misses of landmarks well inside the field of view, removes
-    /// those missed more often than seen, and tracks which left the view.
-    fn count_misses(&mut self, pose: &SE2, associated: &[bool], scan: usize) {
-        let inverse = pose.inverse();
-        let mapping = self.mode == Mode::Mapping;
-        let distance = self.motion.distance();
-        for (l, lm) in self.landmarks.iter_mut().enumerate() {
-            if lm.removed || self.alias[l] != l {
-                continue;
-            }
-            let visible = in_view(&self.config, &inverse, &lm.mean);
-            let seen = associated.get(l).copied().unwrap_or(false);
-            if lm
-                .sighting
-                .after_scan(visible, seen, mapping, scan, distance)
-            {
-                lm.removed = true;
-            }
-        }
-    }
-
-    /// Optimises every pose and confirmed landmark, merges duplicates, and
-    /// switches to localisation if configured.
-    fn close_loop(&mut self) {
-        let start = Instant::now();
-        self.loop_closures += 1;
-        if let Err(e) = self.optimise() {
-            eprintln!("loop closure optimisation failed: {e}");
-        }
-        self.timing
-            .loop_closures
-            .push(start.elapsed().as_secs_f64());
-        for lm in &mut self.landmarks {
-            lm.sighting.settle();
-        }
-        if self.config.localise_after_loop {
-            self.mode = Mode::Localising;
-        }
     }
 
     /// The landmarks of the map, in output order, with their internal indices.

@@ -1,0 +1,123 @@
+//! Loop closure: start-area landmarks that return after a lap, place
+//! recognition when drift hides them from the gates, the full optimisation
+//! that follows, and placing the car on a given map.
+
+use super::{GraphSlam, Mode, Observation, align, nearest_information2};
+use crate::color::Color;
+use crate::log::Detection;
+use crate::sighting::View;
+use nalgebra::{Matrix2, Matrix3, Vector2};
+use std::time::Instant;
+
+impl GraphSlam {
+    /// Whether landmark `l` marks the start of the lap ([`Sighting::is_start_area`]).
+    pub(super) fn is_start_area(&self, l: usize) -> bool {
+        self.landmarks[l]
+            .sighting
+            .is_start_area(self.motion.distance(), self.pose.theta)
+    }
+
+    /// Whether landmark `l` is a start-area landmark waiting for the lap to
+    /// close. The gates assume the pose and the landmark are known to a few
+    /// centimetres of each other, which a lap of drift breaks: near a cone
+    /// spacing they match the wrong cones and bend the whole loop. So these
+    /// landmarks are matched only through place recognition.
+    pub(super) fn awaits_loop_closure(&self, l: usize) -> bool {
+        self.mode == Mode::Mapping
+            && self.landmarks[l].sighting.view == View::Left
+            && self.is_start_area(l)
+    }
+
+    /// Drift can put returning landmarks outside the association gates, so
+    /// the place is also recognised geometrically: the scan is aligned to
+    /// the landmarks that left the view long ago, near the current pose.
+    /// When enough detections agree, they are tied to those landmarks,
+    /// which closes the loop in the graph.
+    pub(super) fn recognise_place(
+        &mut self,
+        cones: &[Detection],
+        covs: &[Matrix2<f64>],
+        keyframe: usize,
+    ) -> bool {
+        let reach = self.config.max_range + 5.0;
+        let old: Vec<usize> = (0..self.landmarks.len())
+            .filter(|&l| {
+                let lm = &self.landmarks[l];
+                self.alias[l] == l
+                    && lm.sighting.confirmed
+                    && !lm.removed
+                    && self.awaits_loop_closure(l)
+                    && (lm.mean - self.pose.t).norm() < reach
+            })
+            .collect();
+        let map: Vec<(Vector2<f64>, Color)> = old
+            .iter()
+            .map(|&l| (self.landmarks[l].mean, self.landmarks[l].sighting.color()))
+            .collect();
+        let min_inliers = self.config.loop_min_returned;
+        // The smoother keeps drift well under half a cone spacing, and a
+        // larger correction could as well be one spacing off.
+        let max_shift = align::unambiguous_shift(&map).min(align::MAX_SHIFT);
+        let Some(aligned) = align::recognise(&map, cones, &self.pose, min_inliers, max_shift)
+        else {
+            return false;
+        };
+        let first = self.detections.len() - cones.len();
+        for (i, d) in cones.iter().enumerate() {
+            let w = aligned.transform_point(&d.position);
+            let nearest = old
+                .iter()
+                .map(|&l| (l, (self.landmarks[l].mean - w).norm()))
+                .min_by(|a, b| a.1.total_cmp(&b.1));
+            if let Some((l, dist)) = nearest
+                && dist < 0.6
+            {
+                self.observations.push(Observation {
+                    pose: keyframe,
+                    landmark: l,
+                    z: d.position,
+                    information: nearest_information2(&covs[i]),
+                });
+                self.detections[first + i].2 = Some(l);
+                self.landmarks[l].sighting.view = View::Returned;
+            }
+        }
+        true
+    }
+
+    /// Places the car on the given map ([`align::place`]).
+    pub(super) fn align_to_map(&mut self, cones: &[Detection]) -> bool {
+        let map: Vec<(Vector2<f64>, Color)> = self
+            .landmarks
+            .iter()
+            .map(|l| (l.mean, l.sighting.color()))
+            .collect();
+        let here = self.pose.compose(&self.motion.pending());
+        let found = align::place(&map, cones, &here);
+        let Some(pose) = found else { return false };
+        self.pose = pose;
+        self.pose_cov = Matrix3::from_diagonal(&nalgebra::Vector3::new(0.25, 0.25, 0.05));
+        self.motion.take();
+        self.aligned = true;
+        true
+    }
+
+    /// Optimises every pose and confirmed landmark, merges duplicates, and
+    /// switches to localisation if configured.
+    pub(super) fn close_loop(&mut self) {
+        let start = Instant::now();
+        self.loop_closures += 1;
+        if let Err(e) = self.optimise() {
+            eprintln!("loop closure optimisation failed: {e}");
+        }
+        self.timing
+            .loop_closures
+            .push(start.elapsed().as_secs_f64());
+        for lm in &mut self.landmarks {
+            lm.sighting.settle();
+        }
+        if self.config.localise_after_loop {
+            self.mode = Mode::Localising;
+        }
+    }
+}
