@@ -4,8 +4,8 @@
 use cairn_core::SE2;
 use cairn_slam::Cone;
 use cairn_slam::color::Color;
-use cairn_slam::estimator::{EstimatorBuilder, EstimatorKind};
-use cairn_slam::eval::evaluate;
+use cairn_slam::estimator::{Estimator, EstimatorBuilder, EstimatorKind};
+use cairn_slam::eval::{Report, evaluate};
 use cairn_slam::files::{Association, StampedPose};
 use cairn_slam::frontend::{FrontEndConfig, Mode};
 use cairn_slam::log::{Detection, Record};
@@ -95,6 +95,18 @@ fn drive(
     out
 }
 
+/// The estimator's map, trajectory and associations against the drive's truth.
+fn score(cones: &[Cone], slam: &dyn Estimator, run: &Drive) -> Report {
+    evaluate(
+        cones,
+        &slam.map(),
+        &run.truth,
+        &slam.trajectory(),
+        &run.associations,
+        &slam.associations(),
+    )
+}
+
 fn cone(x: f64, y: f64, color: Color) -> Cone {
     Cone::new(x, y, color)
 }
@@ -161,14 +173,7 @@ fn a_car_standing_still_maps_the_cones_it_sees_and_stays_put() {
             "{kind:?}: drifted to {last:?}"
         );
         assert!(last.theta.abs() < 0.01, "{kind:?}: turned to {last:?}");
-        let report = evaluate(
-            &cones,
-            &map,
-            &run.truth,
-            &trajectory,
-            &run.associations,
-            &slam.associations(),
-        );
+        let report = score(&cones, slam.as_ref(), &run);
         assert_eq!(report.association_accuracy, 1.0, "{kind:?}");
         assert_eq!(slam.mode(), Mode::Mapping, "{kind:?}: no lap was driven");
     }
@@ -185,14 +190,7 @@ fn a_straight_drive_maps_the_corridor() {
             slam.process(r);
         }
         let trajectory = slam.trajectory();
-        let report = evaluate(
-            &cones,
-            &slam.map(),
-            &run.truth,
-            &trajectory,
-            &run.associations,
-            &slam.associations(),
-        );
+        let report = score(&cones, slam.as_ref(), &run);
         println!("{kind:?}: {report:?}");
         assert_eq!(report.phantom, 0, "{kind:?}");
         assert!(report.association_accuracy > 0.99, "{kind:?}: {report:?}");
@@ -247,14 +245,7 @@ fn the_graph_holds_its_heading_against_a_yaw_rate_bias() {
     let end = slam.trajectory().last().unwrap().pose;
     assert!(end.theta.abs() < 0.5f64.to_radians(), "ended at {end:?}");
     assert!(end.t.y.abs() < 2.5, "ended at {end:?}");
-    let report = evaluate(
-        &cones,
-        &slam.map(),
-        &run.truth,
-        &slam.trajectory(),
-        &run.associations,
-        &slam.associations(),
-    );
+    let report = score(&cones, slam.as_ref(), &run);
     assert!(report.association_accuracy > 0.99, "{report:?}");
     // The far end has drifted sideways with the bias (the error above), so
     // the map's shape is checked after a rigid alignment.
@@ -302,14 +293,7 @@ fn known_correspondences_are_followed_exactly() {
         for r in &run.log {
             slam.process(r);
         }
-        let report = evaluate(
-            &cones,
-            &slam.map(),
-            &run.truth,
-            &slam.trajectory(),
-            &run.associations,
-            &slam.associations(),
-        );
+        let report = score(&cones, slam.as_ref(), &run);
         assert_eq!(report.association_accuracy, 1.0, "{kind:?}: {report:?}");
         assert_eq!(report.phantom, 0, "{kind:?}: {report:?}");
         assert!(report.map_rmse < 0.1 * slack(kind), "{kind:?}: {report:?}");

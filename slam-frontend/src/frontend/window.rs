@@ -227,7 +227,7 @@ impl Window {
             let slot = group[0].slot;
             let y = inverses[slot] * self.bl[slot];
             for c in group {
-                sub_vec(&mut b, 3 * c.pose, &(c.block * y));
+                add_vec(&mut b, 3 * c.pose, &-(c.block * y));
             }
         }
         let chol = std::mem::take(&mut self.hpp).cholesky()?;
@@ -294,9 +294,4 @@ fn add_block<const R: usize, const C: usize>(
 fn add_vec(b: &mut DVector<f64>, row: usize, v: &Vector3<f64>) {
     let mut view = b.fixed_rows_mut::<3>(row);
     view += v;
-}
-
-fn sub_vec(b: &mut DVector<f64>, row: usize, v: &Vector3<f64>) {
-    let mut view = b.fixed_rows_mut::<3>(row);
-    view -= v;
 }
