@@ -9,7 +9,7 @@ use faer::sparse::linalg::cholesky::{
     CholeskySymbolicParams, LltRef, SymbolicCholesky, SymmetricOrdering,
     factorize_symbolic_cholesky,
 };
-use faer::sparse::{SparseColMatRef, SymbolicSparseColMatRef};
+use faer::sparse::{SparseColMatRef, SymbolicSparseColMat, SymbolicSparseColMatRef};
 use faer::{Conj, MatMut, Par, Side};
 use serde::{Deserialize, Serialize};
 
@@ -46,6 +46,10 @@ pub enum Ordering {
     BlockAmd,
     /// The vertex order as it is.
     Identity,
+    /// Every landmark first, then the poses in AMD order of the reduced pose
+    /// system: the Cholesky then forms the Schur complement on the landmarks,
+    /// as g2o's block solvers do explicitly.
+    Schur,
 }
 
 /// Options of the linear solver.
@@ -68,31 +72,102 @@ pub struct NotPositiveDefinite {
     pub pivot: usize,
 }
 
-/// AMD on the block graph, expanded to a scalar permutation (forward, inverse).
-fn block_amd(
-    blocks: SymbolicSparseColMatRef<'_, usize>,
-    dims: &[usize],
-) -> Result<(Vec<usize>, Vec<usize>), SolveError> {
-    let n = dims.len();
+/// The block structure of H: one row and column per free vertex.
+#[derive(Clone, Copy, Debug)]
+pub struct Blocks<'a> {
+    /// Pattern of the upper block triangle.
+    pub pattern: SymbolicSparseColMatRef<'a, usize>,
+    /// Tangent dimension of each block.
+    pub dims: &'a [usize],
+    /// Whether each block is a pose (the others are landmarks).
+    pub is_pose: &'a [bool],
+}
+
+/// Approximate minimum degree order of the blocks of `pattern`.
+fn amd(pattern: SymbolicSparseColMatRef<'_, usize>) -> Result<Vec<usize>, SolveError> {
+    let n = pattern.ncols();
     let (mut perm, mut perm_inv) = (vec![0usize; n], vec![0usize; n]);
-    let nnz = blocks.row_idx().len();
+    let nnz = pattern.row_idx().len();
     let mut scratch = MemBuffer::try_new(faer::sparse::linalg::amd::order_scratch::<usize>(n, nnz))
         .map_err(|_| SolveError::OutOfMemory)?;
     faer::sparse::linalg::amd::order(
         &mut perm,
         &mut perm_inv,
-        blocks,
+        pattern,
         Default::default(),
         MemStack::new(&mut scratch),
     )
     .map_err(|e| SolveError::Analysis(format!("{e:?}")))?;
-    let mut start = Vec::with_capacity(n);
+    Ok(perm)
+}
+
+/// The landmarks first, then the poses in AMD order of the pattern the
+/// landmarks' elimination leaves (the reduced pose system). Landmarks joined to
+/// another landmark stay with the poses, so the eliminated block is diagonal.
+fn schur_order(blocks: Blocks<'_>) -> Result<Vec<usize>, SolveError> {
+    let n = blocks.dims.len();
+    let mut neighbours = vec![Vec::new(); n];
+    for c in 0..n {
+        for &r in blocks.pattern.row_idx_of_col_raw(c) {
+            if r != c {
+                neighbours[r].push(c);
+                neighbours[c].push(r);
+            }
+        }
+    }
+    let eliminated: Vec<bool> = (0..n)
+        .map(|b| !blocks.is_pose[b] && neighbours[b].iter().all(|&o| blocks.is_pose[o]))
+        .collect();
+    let kept: Vec<usize> = (0..n).filter(|&b| !eliminated[b]).collect();
+    let mut index = vec![usize::MAX; n];
+    for (k, &b) in kept.iter().enumerate() {
+        index[b] = k;
+    }
+    // Upper triangle of the reduced system: the kept blocks' own couplings plus
+    // a clique on the neighbours of each eliminated landmark.
+    let mut rows: Vec<Vec<usize>> = (0..kept.len()).map(|k| vec![k]).collect();
+    for c in 0..n {
+        for &r in blocks.pattern.row_idx_of_col_raw(c) {
+            if r != c && !eliminated[r] && !eliminated[c] {
+                let (a, b) = (index[r].min(index[c]), index[r].max(index[c]));
+                rows[b].push(a);
+            }
+        }
+        if eliminated[c] {
+            for &p in &neighbours[c] {
+                for &q in &neighbours[c] {
+                    if index[p] < index[q] {
+                        rows[index[q]].push(index[p]);
+                    }
+                }
+            }
+        }
+    }
+    let mut col_ptr = vec![0usize];
+    let mut row_idx = Vec::new();
+    for col in &mut rows {
+        col.sort_unstable();
+        col.dedup();
+        row_idx.extend_from_slice(col);
+        col_ptr.push(row_idx.len());
+    }
+    let reduced = SymbolicSparseColMat::new_checked(kept.len(), kept.len(), col_ptr, None, row_idx);
+    let pose_order = amd(reduced.as_ref())?;
+    Ok((0..n)
+        .filter(|&b| eliminated[b])
+        .chain(pose_order.iter().map(|&k| kept[k]))
+        .collect())
+}
+
+/// A block order expanded to a scalar permutation (forward, inverse).
+fn expand(order: &[usize], dims: &[usize]) -> (Vec<usize>, Vec<usize>) {
+    let mut start = Vec::with_capacity(dims.len());
     let mut total = 0;
     for &d in dims {
         start.push(total);
         total += d;
     }
-    let forward: Vec<usize> = perm
+    let forward: Vec<usize> = order
         .iter()
         .flat_map(|&b| start[b]..start[b] + dims[b])
         .collect();
@@ -100,7 +175,7 @@ fn block_amd(
     for (i, &f) in forward.iter().enumerate() {
         inverse[f] = i;
     }
-    Ok((forward, inverse))
+    (forward, inverse)
 }
 
 /// A sparse Cholesky solver bound to one sparsity pattern.
@@ -126,7 +201,7 @@ impl SparseCholesky {
     /// row and column per vertex, and each vertex's dimension).
     pub fn analyze(
         pattern: SymbolicSparseColMatRef<'_, usize>,
-        blocks: (SymbolicSparseColMatRef<'_, usize>, &[usize]),
+        blocks: Blocks<'_>,
         config: &LinearSolverConfig,
     ) -> Result<Self, SolveError> {
         let threshold = match config.factorization {
@@ -134,12 +209,14 @@ impl SparseCholesky {
             Factorization::Simplicial => SupernodalThreshold::FORCE_SIMPLICIAL,
             Factorization::Supernodal => SupernodalThreshold::FORCE_SUPERNODAL,
         };
-        let block_perm = match config.ordering {
-            Ordering::BlockAmd => Some(block_amd(blocks.0, blocks.1)?),
-            _ => None,
+        let block_order = match config.ordering {
+            Ordering::BlockAmd => Some(amd(blocks.pattern)?),
+            Ordering::Schur => Some(schur_order(blocks)?),
+            Ordering::Amd | Ordering::Identity => None,
         };
+        let block_perm = block_order.map(|order| expand(&order, blocks.dims));
         let ordering = match (config.ordering, &block_perm) {
-            (Ordering::BlockAmd, Some((fwd, inv))) => {
+            (_, Some((fwd, inv))) => {
                 SymmetricOrdering::Custom(faer::perm::PermRef::new_checked(fwd, inv, fwd.len()))
             }
             (Ordering::Identity, _) => SymmetricOrdering::Identity,
@@ -226,5 +303,53 @@ impl SparseCholesky {
         let x = MatMut::from_column_major_slice_mut(rhs, n, 1);
         llt.solve_in_place_with_conj(Conj::No, x, self.par, stack);
         true
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// Upper block pattern (with diagonal) of the given undirected couplings.
+    fn pattern(n: usize, couplings: &[(usize, usize)]) -> SymbolicSparseColMat<usize> {
+        let mut rows: Vec<Vec<usize>> = (0..n).map(|c| vec![c]).collect();
+        for &(a, b) in couplings {
+            rows[a.max(b)].push(a.min(b));
+        }
+        let mut col_ptr = vec![0];
+        let mut row_idx = Vec::new();
+        for mut r in rows {
+            r.sort_unstable();
+            r.dedup();
+            row_idx.extend(r);
+            col_ptr.push(row_idx.len());
+        }
+        SymbolicSparseColMat::new_checked(n, n, col_ptr, None, row_idx)
+    }
+
+    #[test]
+    fn schur_order_puts_isolated_landmarks_first() {
+        // Poses 0-1-2-3 in a chain; landmark 4 seen from 0 and 3; landmarks 5
+        // and 6 joined to each other, so neither can be eliminated on its own.
+        let p = pattern(
+            7,
+            &[(0, 1), (1, 2), (2, 3), (0, 4), (3, 4), (1, 5), (5, 6), (2, 6)],
+        );
+        let is_pose = [true, true, true, true, false, false, false];
+        let dims = [3, 3, 3, 3, 2, 2, 2];
+        let order = schur_order(Blocks {
+            pattern: p.as_ref(),
+            dims: &dims,
+            is_pose: &is_pose,
+        })
+        .unwrap();
+        assert_eq!(order[0], 4);
+        let mut sorted = order.clone();
+        sorted.sort_unstable();
+        assert_eq!(sorted, (0..7).collect::<Vec<_>>());
+        let (forward, inverse) = expand(&order, &dims);
+        assert_eq!(forward.len(), 18);
+        assert_eq!(&forward[..2], &[12, 13]);
+        assert!((0..18).all(|i| forward[inverse[i]] == i));
     }
 }

@@ -77,10 +77,7 @@ impl Optimizer {
         let cholesky = if structure.dim > 0 {
             Some(SparseCholesky::analyze(
                 structure.pattern.as_ref(),
-                (
-                    structure.block_pattern.as_ref(),
-                    structure.block_dims.as_slice(),
-                ),
+                structure.blocks(),
                 &config.linear,
             )?)
         } else {

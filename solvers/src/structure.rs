@@ -7,6 +7,7 @@
 //! of threads.
 
 use crate::SolveError;
+use crate::linear::Blocks;
 use cairn_core::Graph;
 use cairn_core::layout;
 use faer::sparse::SymbolicSparseColMat;
@@ -75,6 +76,8 @@ pub struct HessianStructure {
     pub block_pattern: SymbolicSparseColMat<usize>,
     /// Tangent dimension of each free vertex, in column order.
     pub block_dims: Vec<usize>,
+    /// Whether each free vertex is a pose, in column order.
+    pub block_is_pose: Vec<bool>,
     /// Start of each factor group's region in the linearisation buffer.
     pub group_offset: Vec<usize>,
     /// Length of the linearisation buffer.
@@ -233,12 +236,14 @@ impl HessianStructure {
         let block_pattern =
             SymbolicSparseColMat::new_checked(blocks, blocks, block_col_ptr, None, block_row_idx);
         let block_dims = free.iter().map(|&v| vdim[v]).collect();
+        let block_is_pose = free.iter().map(|&v| graph.vertex(v).kind.is_pose).collect();
         Ok(Self {
             column,
             dim,
             pattern,
             block_pattern,
             block_dims,
+            block_is_pose,
             diagonal,
             group_offset,
             buffer_len,
@@ -246,6 +251,15 @@ impl HessianStructure {
             gradient: Gather::from_pairs(dim, &g_pairs),
             chi2_slots,
         })
+    }
+
+    /// The block structure, for the fill-reducing ordering.
+    pub fn blocks(&self) -> Blocks<'_> {
+        Blocks {
+            pattern: self.block_pattern.as_ref(),
+            dims: &self.block_dims,
+            is_pose: &self.block_is_pose,
+        }
     }
 
     /// Number of stored entries of the upper triangle of H.

@@ -43,6 +43,8 @@ enum OrderingName {
     BlockAmd,
     /// No reordering.
     Identity,
+    /// Landmarks first (the Schur complement on the landmarks), then block AMD on the poses.
+    Schur,
 }
 
 #[derive(Clone, Copy, Debug, PartialEq, Eq, ValueEnum)]
@@ -307,6 +309,7 @@ pub fn run(a: SolveArgs) -> Result<(), String> {
                 OrderingName::Amd => Ordering::Amd,
                 OrderingName::BlockAmd => Ordering::BlockAmd,
                 OrderingName::Identity => Ordering::Identity,
+                OrderingName::Schur => Ordering::Schur,
             },
             ..Default::default()
         },
