@@ -167,10 +167,10 @@ impl HessianStructure {
         let value_index = |r: usize, c: usize, i: usize, j: usize| -> usize {
             // Entry (i, j) of block (r, c), r before or equal to c.
             let cc = column[c].unwrap_or(0);
+            // Block rows are sorted by column.
             let pos = block_pos[c]
-                .iter()
-                .find(|&&(v, _)| v == r)
-                .map(|&(_, p)| p)
+                .binary_search_by_key(&column[r], |&(v, _)| column[v])
+                .map(|k| block_pos[c][k].1)
                 .unwrap_or(0);
             col_ptr[cc + j] + pos + i
         };
