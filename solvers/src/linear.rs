@@ -333,7 +333,16 @@ mod tests {
         // and 6 joined to each other, so neither can be eliminated on its own.
         let p = pattern(
             7,
-            &[(0, 1), (1, 2), (2, 3), (0, 4), (3, 4), (1, 5), (5, 6), (2, 6)],
+            &[
+                (0, 1),
+                (1, 2),
+                (2, 3),
+                (0, 4),
+                (3, 4),
+                (1, 5),
+                (5, 6),
+                (2, 6),
+            ],
         );
         let is_pose = [true, true, true, true, false, false, false];
         let dims = [3, 3, 3, 3, 2, 2, 2];
