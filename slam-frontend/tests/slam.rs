@@ -159,6 +159,54 @@ fn a_lap_drifting_more_than_half_a_cone_spacing_still_closes_correctly() {
 }
 
 #[test]
+fn cones_closer_than_the_merge_radius_stay_two_after_the_loop_closes() {
+    // EUFS tracks put the start's big orange cones in pairs 0.56 m apart,
+    // inside the merge radius: one scan sees both, so the full
+    // optimisation must not merge them as one cone mapped twice.
+    let (mut track, course) = random_track(2, &TrackRules::default());
+    let orange: Vec<usize> = (0..track.cones.len())
+        .filter(|&i| track.cones[i].color == cairn_slam::color::Color::BigOrange)
+        .collect();
+    assert_eq!(orange.len(), 4);
+    for &i in &orange {
+        // Each cone's partner on its side of the track is the nearest one.
+        let p = track.cones[i].position;
+        let &j = orange
+            .iter()
+            .filter(|&&j| j != i)
+            .min_by(|&&a, &&b| {
+                let da = (track.cones[a].position - p).norm();
+                let db = (track.cones[b].position - p).norm();
+                da.total_cmp(&db)
+            })
+            .unwrap();
+        if i < j {
+            let q = track.cones[j].position;
+            track.cones[j].position = p + 0.5 * (q - p).normalize();
+        }
+    }
+    let sim = simulate(
+        &track,
+        &course,
+        &SimConfig {
+            seed: 2,
+            ..SimConfig::default()
+        },
+    );
+    let (slam, report) = run_and_score(&sim, FrontEndConfig::default());
+    assert_eq!(slam.loop_closures(), 1);
+    let map = slam.map();
+    for &i in &orange {
+        let c = &track.cones[i];
+        assert!(
+            map.iter()
+                .any(|m| m.color == c.color && (m.position - c.position).norm() < 0.2),
+            "{c:?} not mapped: {report:?}"
+        );
+    }
+}
+
+#[test]
 fn a_saved_map_localises_a_new_run_from_an_unknown_start() {
     let (track, course) = random_track(1, &TrackRules::default());
     let sim = simulate(

@@ -46,6 +46,10 @@ pub struct SimArgs {
     /// Random seed (track generation and noise).
     #[arg(long, default_value_t = 1)]
     seed: u64,
+    /// Seed of the random track when it should differ from `--seed`
+    /// (`fs-report`'s `random-N` is `--track-seed N`).
+    #[arg(long)]
+    track_seed: Option<u64>,
     /// Output directory: log.jsonl, truth_traj.tum, truth_assoc.csv, truth_map.csv.
     #[arg(short, long)]
     out: PathBuf,
@@ -174,7 +178,7 @@ pub fn run_sim(a: SimArgs) -> Result<(), String> {
                 Course::from_track(&track).map_err(|e| format!("{}: {e}", path.display()))?;
             (track, course)
         }
-        None => random_track(a.seed, &TrackRules::default()),
+        None => random_track(a.track_seed.unwrap_or(a.seed), &TrackRules::default()),
     };
     let config = SimConfig {
         preset,

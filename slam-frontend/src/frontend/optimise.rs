@@ -4,6 +4,8 @@
 use super::{GraphSlam, Observation, OptimiseError};
 use cairn_core::{EdgeSE2, EdgeSE2XY, Graph};
 use cairn_solvers::{Optimizer, SolverConfig};
+use nalgebra::Vector2;
+use std::collections::HashMap;
 
 impl GraphSlam {
     /// Full optimisation of the pose/landmark graph on Cairn's solver.
@@ -73,7 +75,8 @@ impl GraphSlam {
     }
 
     /// Landmarks of one colour closer than [`MERGE_RADIUS`] are one cone seen twice
-    /// (typically once per lap before the loop closed).
+    /// (typically once per lap before the loop closed), unless one scan saw
+    /// both: then they are two cones, like the start's big orange pairs.
     fn merge_duplicates(&mut self) {
         let live: Vec<usize> = (0..self.landmarks.len())
             .filter(|&l| {
@@ -82,36 +85,66 @@ impl GraphSlam {
                     && self.landmarks[l].sighting.confirmed
             })
             .collect();
+        let mut close = Vec::new();
         for (a_pos, &a) in live.iter().enumerate() {
-            if self.alias[a] != a {
-                continue;
-            }
             for &b in &live[a_pos + 1..] {
-                if self.alias[b] != b {
-                    continue;
-                }
                 let (la, lb) = (&self.landmarks[a], &self.landmarks[b]);
                 if (la.mean - lb.mean).norm() < MERGE_RADIUS
                     && la.sighting.color().compatible(lb.sighting.color())
                 {
-                    let (keep, drop) = if la.sighting.seen >= lb.sighting.seen {
-                        (a, b)
-                    } else {
-                        (b, a)
-                    };
-                    let dropped = self.landmarks[drop].clone();
-                    let kept = &mut self.landmarks[keep];
-                    for k in 0..5 {
-                        kept.sighting.votes[k] += dropped.sighting.votes[k];
-                    }
-                    kept.sighting.seen += dropped.sighting.seen;
-                    self.alias[drop] = keep;
-                    if drop == a {
-                        break;
-                    }
+                    close.push((a, b));
                 }
             }
         }
+        if close.is_empty() {
+            return;
+        }
+        let seen_together = self.seen_together(&close);
+        for (&(a, b), together) in close.iter().zip(seen_together) {
+            let (a, b) = (self.resolve(a), self.resolve(b));
+            if a == b || together {
+                continue;
+            }
+            let (keep, drop) = if self.landmarks[a].sighting.seen >= self.landmarks[b].sighting.seen
+            {
+                (a, b)
+            } else {
+                (b, a)
+            };
+            let dropped = self.landmarks[drop].sighting.clone();
+            let kept = &mut self.landmarks[keep].sighting;
+            for k in 0..5 {
+                kept.votes[k] += dropped.votes[k];
+            }
+            kept.seen += dropped.seen;
+            self.alias[drop] = keep;
+        }
+    }
+
+    /// For each pair, whether some scan has two different detections of
+    /// them. (Place recognition may re-tie a detection to an old landmark,
+    /// so one detection can stand for both.)
+    fn seen_together(&self, pairs: &[(usize, usize)]) -> Vec<bool> {
+        let mut sightings: HashMap<usize, Vec<(usize, Vector2<f64>)>> = HashMap::new();
+        for &(a, b) in pairs {
+            sightings.entry(a).or_default();
+            sightings.entry(b).or_default();
+        }
+        for o in &self.observations {
+            if let Some(list) = sightings.get_mut(&self.resolve(o.landmark)) {
+                list.push((o.pose, o.z));
+            }
+        }
+        pairs
+            .iter()
+            .map(|(a, b)| {
+                let (sa, sb) = (&sightings[a], &sightings[b]);
+                sa.iter().any(|(pa, za)| {
+                    sb.iter()
+                        .any(|(pb, zb)| pa == pb && (za - zb).norm() > 1e-9)
+                })
+            })
+            .collect()
     }
 }
 
