@@ -25,7 +25,7 @@ pub fn place(map: &[(Vector2<f64>, Color)], detections: &[Detection], here: &SE2
     if agree >= needed {
         return Some(*here);
     }
-    align(map, detections, None)
+    align(map, detections)
         .filter(|(_, n)| *n >= needed)
         .map(|(p, _)| p)
 }
@@ -35,34 +35,82 @@ pub fn place(map: &[(Vector2<f64>, Color)], detections: &[Detection], here: &SE2
 /// least `min_inliers` detections (and half the scan) agree. Drift can put
 /// returning landmarks outside the association gates; this finds them
 /// geometrically.
-/// The correction from `pose` is at most `max_shift` metres.
+///
+/// A row of evenly spaced cones fits as well shifted by one spacing. So a
+/// correction of more than `unambiguous` metres (up to [`MAX_SHIFT`]) is
+/// taken only when the start line's big orange cones agree with it, and
+/// the chosen fit must beat every fit more than half a spacing away by
+/// [`MARGIN`]; otherwise the scan is ambiguous and `None` waits for the
+/// next one.
 pub fn recognise(
     old: &[(Vector2<f64>, Color)],
     detections: &[Detection],
     pose: &SE2,
     min_inliers: usize,
-    max_shift: f64,
+    unambiguous: f64,
 ) -> Option<SE2> {
     if old.len() < min_inliers {
         return None;
     }
-    let (aligned, inliers) = align(old, detections, Some((pose, max_shift)))?;
-    (inliers >= min_inliers.max(detections.len() / 2)).then_some(aligned)
+    let fits = fits(old, detections, Some((pose, MAX_SHIFT)));
+    let anchored = |f: &Fit| {
+        pose.between(&f.pose).t.norm() <= unambiguous || f.start_line >= START_LINE_INLIERS
+    };
+    let best = fits
+        .iter()
+        .filter(|f| anchored(f))
+        .max_by(|a, b| a.score.total_cmp(&b.score))?;
+    let distinct = 0.5 * spacing(old);
+    let rival = fits
+        .iter()
+        .filter(|f| (f.pose.t - best.pose.t).norm() > distinct)
+        .map(|f| f.score)
+        .max_by(f64::total_cmp);
+    let clear = rival.is_none_or(|r| best.score - r >= MARGIN);
+    (clear && best.inliers >= min_inliers.max(detections.len() / 2)).then_some(best.pose)
 }
+
+/// Big orange detections on big orange landmarks that anchor a large
+/// correction to the start line.
+const START_LINE_INLIERS: usize = 3;
+
+/// How much better (in agreeing detections plus log-prior) the chosen fit
+/// must be than any fit elsewhere: a cone more, or as many cones and a
+/// drift e times likelier.
+pub const MARGIN: f64 = 1.0;
 
 /// Drift expected at the end of a lap, for weighing a candidate alignment
 /// against the pose estimate: position σ (m) and heading σ (rad).
 const DRIFT: (f64, f64) = (2.0, 0.1);
 
 /// The pose that puts most detections on map cones of a compatible colour,
-/// and how many agree. With a `prior` (pose, largest shift), only poses
-/// within that shift count, and each also pays for its distance from the
-/// prior pose (a Gaussian log-prior with [`DRIFT`] σ).
-pub fn align(
+/// and how many agree.
+pub fn align(map: &[(Vector2<f64>, Color)], detections: &[Detection]) -> Option<(SE2, usize)> {
+    fits(map, detections, None)
+        .into_iter()
+        .max_by(|a, b| a.score.total_cmp(&b.score))
+        .map(|f| (f.pose, f.inliers))
+}
+
+/// A candidate alignment: the pose, how many detections it puts on map
+/// cones, and that count plus the log-prior.
+struct Fit {
+    pose: SE2,
+    inliers: usize,
+    /// Inliers that are big orange detections on big orange landmarks.
+    start_line: usize,
+    score: f64,
+}
+
+/// Every alignment that two detections and two map cones of compatible
+/// colours and equal spacing propose. With a `prior` (pose, largest
+/// shift), only poses within that shift count, and each also pays for its
+/// distance from the prior pose (a Gaussian log-prior with [`DRIFT`] σ).
+fn fits(
     map: &[(Vector2<f64>, Color)],
     detections: &[Detection],
     prior: Option<(&SE2, f64)>,
-) -> Option<(SE2, usize)> {
+) -> Vec<Fit> {
     // Log-prior, or None beyond the largest shift.
     let prior_score = |pose: &SE2| match prior {
         None => Some(0.0),
@@ -73,21 +121,28 @@ pub fn align(
             })
         }
     };
+    // (inliers, of which big orange on big orange)
     let count = |pose: &SE2| {
-        detections
-            .iter()
-            .filter(|d| {
-                let w = pose.transform_point(&d.position);
-                map.iter()
-                    .any(|(m, c)| c.compatible(d.color) && (m - w).norm() < INLIER)
-            })
-            .count()
+        let mut counts = (0, 0);
+        for d in detections {
+            let w = pose.transform_point(&d.position);
+            if let Some((_, c)) = map
+                .iter()
+                .find(|(m, c)| c.compatible(d.color) && (m - w).norm() < INLIER)
+            {
+                counts.0 += 1;
+                if d.color == Color::BigOrange && *c == Color::BigOrange {
+                    counts.1 += 1;
+                }
+            }
+        }
+        counts
     };
     // The nearest detections are the most precise.
     let mut near: Vec<&Detection> = detections.iter().collect();
     near.sort_by(|a, b| a.position.norm().total_cmp(&b.position.norm()));
     near.truncate(8);
-    let mut best: Option<(SE2, usize, f64)> = None;
+    let mut fits = Vec::new();
     for i in 0..near.len() {
         for j in i + 1..near.len() {
             let (a, b) = (near[i], near[j]);
@@ -107,16 +162,18 @@ pub fn align(
                     let Some(log_prior) = prior_score(&pose) else {
                         continue;
                     };
-                    let n = count(&pose);
-                    let s = n as f64 + log_prior;
-                    if best.as_ref().is_none_or(|(_, _, b)| s > *b) {
-                        best = Some((pose, n, s));
-                    }
+                    let (inliers, start_line) = count(&pose);
+                    fits.push(Fit {
+                        pose,
+                        inliers,
+                        start_line,
+                        score: inliers as f64 + log_prior,
+                    });
                 }
             }
         }
     }
-    best.map(|(pose, n, _)| (pose, n))
+    fits
 }
 
 /// Largest correction place recognition should make on `map` (m). A row
@@ -201,22 +258,62 @@ mod tests {
         assert_eq!(spacing(&row()[..2]), 5.0);
     }
 
-    #[test]
-    fn recognition_takes_the_fit_nearest_the_drifted_pose() {
-        let map = row();
-        let truth = SE2::new(4.0, 0.2, 0.02);
-        let detections = scan(&map, &truth);
-        // Every shift by a whole spacing fits as many cones as the truth
-        // or nearly; the prior must pick the truth, 0.8 m from the estimate.
-        let drifted = SE2::new(4.8, 0.1, 0.0);
-        let found = recognise(&map, &detections, &drifted, 4, MAX_SHIFT).unwrap();
+    /// `row()` with the start line: two pairs of big orange cones 1 m
+    /// apart between its columns at x = 15 and 18.
+    fn row_with_start_line() -> Vec<(Vector2<f64>, Color)> {
+        let mut map = row();
+        for x in [16.0, 17.0] {
+            map.push((Vector2::new(x, 1.5), Color::BigOrange));
+            map.push((Vector2::new(x, -1.5), Color::BigOrange));
+        }
+        map
+    }
+
+    fn assert_same(found: Option<SE2>, truth: &SE2) {
+        let found = found.expect("recognised");
         assert!((found.t - truth.t).norm() < 1e-6, "{found:?}");
         assert!((found.theta - truth.theta).abs() < 1e-6, "{found:?}");
-        // Drift of half a spacing (either fit 1.5 m away) is refused when
-        // asked to be sure.
-        let far = SE2::new(5.5, 0.2, 0.02);
+    }
+
+    #[test]
+    fn recognition_takes_a_correction_under_half_a_spacing() {
+        // Near the row's end a fit one spacing ahead loses the last cones
+        // and one spacing behind is 3.3 m from the estimate: the truth,
+        // 0.3 m away, is clearly best.
+        let map = row();
+        let truth = SE2::new(12.0, 0.2, 0.02);
+        let drifted = SE2::new(12.3, 0.1, 0.0);
         let limit = unambiguous_shift(&map);
-        assert!(recognise(&map, &detections, &far, 4, limit).is_none());
-        assert!(recognise(&map, &detections, &drifted, 4, limit).is_some());
+        let found = recognise(&map, &scan(&map, &truth), &drifted, 4, limit);
+        assert_same(found, &truth);
+    }
+
+    #[test]
+    fn recognition_waits_when_a_fit_one_spacing_off_is_as_good() {
+        // 1.7 m of drift on a 3 m row: the truth is beyond the unambiguous
+        // 1.35 m and the fit one spacing ahead is 1.3 m from the estimate.
+        // Neither may be taken.
+        let map = row();
+        let truth = SE2::new(10.0, 0.2, 0.02);
+        let drifted = SE2::new(11.7, 0.2, 0.02);
+        let limit = unambiguous_shift(&map);
+        assert!(recognise(&map, &scan(&map, &truth), &drifted, 4, limit).is_none());
+    }
+
+    #[test]
+    fn the_start_line_confirms_a_correction_over_half_a_spacing() {
+        let map = row_with_start_line();
+        let truth = SE2::new(10.0, 0.2, 0.02);
+        let drifted = SE2::new(11.7, 0.2, 0.02);
+        let limit = unambiguous_shift(&row());
+        let found = recognise(&map, &scan(&map, &truth), &drifted, 4, limit);
+        assert_same(found, &truth);
+        // Seeing one orange pair is not enough: one spacing on, it could
+        // be the other pair.
+        let one_pair: Vec<Detection> = scan(&map, &truth)
+            .into_iter()
+            .filter(|d| d.color != Color::BigOrange || d.position.x < 6.5)
+            .collect();
+        assert!(recognise(&map, &one_pair, &drifted, 4, limit).is_none());
     }
 }

@@ -55,10 +55,10 @@ impl GraphSlam {
             .map(|&l| (self.landmarks[l].mean, self.landmarks[l].sighting.color()))
             .collect();
         let min_inliers = self.config.loop_min_returned;
-        // The smoother keeps drift well under half a cone spacing, and a
-        // larger correction could as well be one spacing off.
-        let max_shift = align::unambiguous_shift(&map).min(align::MAX_SHIFT);
-        let Some(aligned) = align::recognise(&map, cones, &self.pose, min_inliers, max_shift)
+        // A correction of half a cone spacing or more could as well be one
+        // spacing off; the start line's orange cones must confirm it.
+        let unambiguous = align::unambiguous_shift(&map);
+        let Some(aligned) = align::recognise(&map, cones, &self.pose, min_inliers, unambiguous)
         else {
             return false;
         };
