@@ -72,6 +72,9 @@ pub struct Odometry {
     time: Option<f64>,
     delta: SE2,
     delta_cov: Matrix3<f64>,
+    /// Σ dt² over the steps since the last take: white noise of σ per
+    /// step integrates to a heading variance of σ² Σ dt².
+    step_time2: f64,
     distance: f64,
 }
 
@@ -85,6 +88,7 @@ impl Odometry {
             time: None,
             delta: SE2::identity(),
             delta_cov: Matrix3::zeros(),
+            step_time2: 0.0,
             distance: 0.0,
         }
     }
@@ -131,6 +135,7 @@ impl Odometry {
         self.delta_cov = f * self.delta_cov * f.transpose()
             + rot * step_cov * rot.transpose() * CORRELATED_STEPS;
         self.delta = self.delta.compose(&step);
+        self.step_time2 += dt * dt;
         self.distance += (v * dt).abs();
         self.time = Some(t);
     }
@@ -169,7 +174,14 @@ impl Odometry {
         let out = (self.delta, self.delta_cov);
         self.delta = SE2::identity();
         self.delta_cov = Matrix3::zeros();
+        self.step_time2 = 0.0;
         out
+    }
+
+    /// Σ dt² of the integration steps since the last [`Odometry::take`]
+    /// (read it before taking).
+    pub fn step_time2(&self) -> f64 {
+        self.step_time2
     }
 
     /// The motion since the last [`Odometry::take`], without resetting it.

@@ -157,6 +157,40 @@ fn a_lap_drifting_more_than_half_a_cone_spacing_still_closes_correctly() {
 }
 
 #[test]
+fn the_loop_closure_learns_the_yaw_rate_bias() {
+    // The `standard` preset's gyro reads 0.002 rad/s high. The online
+    // calibration follows each scan's noisy heading correction; the full
+    // optimisation fits the bias to the whole lap.
+    let (track, course) = random_track(2, &TrackRules::default());
+    for seed in [3, 4] {
+        let config = SimConfig {
+            seed,
+            ..SimConfig::default()
+        };
+        let truth = config.preset.odometry.yaw_rate_bias;
+        let sim = simulate(&track, &course, &config);
+        let mut slam = GraphSlam::new(FrontEndConfig::default());
+        let mut online = None;
+        for r in &sim.log {
+            if slam.loop_closures() == 0 {
+                online = Some(slam.calibration().yaw_rate_bias);
+            }
+            slam.process(r);
+            if slam.loop_closures() == 1 {
+                break;
+            }
+        }
+        let (online, fitted) = (online.unwrap(), slam.calibration().yaw_rate_bias);
+        assert_eq!(slam.loop_closures(), 1);
+        assert!((fitted - truth).abs() < 2e-4, "seed {seed}: {fitted}");
+        assert!(
+            (fitted - truth).abs() < (online - truth).abs(),
+            "seed {seed}: online {online}, fitted {fitted}"
+        );
+    }
+}
+
+#[test]
 fn cones_closer_than_the_merge_radius_stay_two_after_the_loop_closes() {
     // EUFS tracks put the start's big orange cones in pairs 0.56 m apart,
     // inside the merge radius: one scan sees both, so the full

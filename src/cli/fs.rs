@@ -162,6 +162,7 @@ pub fn front_end_config(preset: &Preset, association: AssociationMethod) -> Fron
         max_range: s.max_range,
         speed_sigma_relative: 2.0 * preset.odometry.speed_scale_bias + 0.01,
         yaw_rate_sigma: 2.0 * preset.odometry.yaw_rate_bias + 0.015,
+        yaw_rate_noise: preset.odometry.yaw_rate_sigma,
         ..FrontEndConfig::default()
     }
 }

@@ -29,6 +29,9 @@ pub struct FrontEndConfig {
     pub speed_sigma_relative: f64,
     /// Yaw-rate σ (rad/s), covering its bias.
     pub yaw_rate_sigma: f64,
+    /// The yaw rate's white noise alone (rad/s). The full optimisation
+    /// estimates the bias and weighs the integrated headings by this.
+    pub yaw_rate_noise: f64,
     /// Model odometry noise as Thrun's rotation–translation–rotation with
     /// these α₁…α₄ instead of the speed and yaw-rate σ above.
     pub rot_trans_rot: Option<[f64; 4]>,
@@ -61,6 +64,7 @@ impl Default for FrontEndConfig {
             speed_sigma: 0.1,
             speed_sigma_relative: 0.03,
             yaw_rate_sigma: 0.02,
+            yaw_rate_noise: 0.005,
             rot_trans_rot: None,
             gate: 9.21,
             new_landmark_gate: 25.0,

@@ -54,6 +54,22 @@ struct Observation {
     information: Matrix2<f64>,
 }
 
+/// The odometry between consecutive keyframes.
+#[derive(Clone, Copy, Debug)]
+struct OdometryEdge {
+    /// Motion integrated from the odometry, with the calibration of the time.
+    delta: SE2,
+    /// Its information, bias included (for the smoother).
+    information: Matrix3<f64>,
+    /// Time between the keyframes (s).
+    dt: f64,
+    /// The yaw-rate bias the integration took out (rad/s).
+    yaw_rate_bias: f64,
+    /// Variance of the integrated heading from the yaw rate's white noise
+    /// alone (rad²).
+    heading_variance: f64,
+}
+
 /// Why a full optimisation failed.
 #[derive(Debug, thiserror::Error)]
 pub enum OptimiseError {
@@ -84,7 +100,7 @@ pub struct GraphSlam {
     /// Motion since the last keyframe and its covariance (in that keyframe's frame).
     motion: Odometry,
     poses: Vec<StampedPose>,
-    odometry: Vec<(SE2, Matrix3<f64>)>,
+    odometry: Vec<OdometryEdge>,
     observations: Vec<Observation>,
     landmarks: Vec<Landmark>,
     /// Merged landmark → the one it was merged into.
@@ -212,6 +228,7 @@ impl GraphSlam {
         }
         // Predict the pose from the last keyframe.
         let previous = self.pose;
+        let step_time2 = self.motion.step_time2();
         let (delta, delta_cov) = self.motion.take();
         let (pred, pred_cov) = compose_with_cov(&previous, &self.pose_cov, &delta, &delta_cov);
 
@@ -240,6 +257,7 @@ impl GraphSlam {
             .flatten()
             .filter(|&&l| self.landmarks[l].sighting.seen >= 2)
             .count();
+        let bias_used = self.calibration.yaw_rate_bias;
         if anchors >= 3 {
             let dt = self.poses.last().map_or(0.0, |p| t - p.t);
             self.calibration.learn(&previous, &pred, &pose, dt);
@@ -249,8 +267,13 @@ impl GraphSlam {
         let keyframe = self.poses.len();
         self.poses.push(StampedPose { t, pose });
         if keyframe > 0 {
-            self.odometry
-                .push((delta, odometry_information(&delta_cov)));
+            self.odometry.push(OdometryEdge {
+                delta,
+                information: odometry_information(&delta_cov),
+                dt: t - self.poses[keyframe - 1].t,
+                yaw_rate_bias: bias_used,
+                heading_variance: self.config.yaw_rate_noise.powi(2) * step_time2,
+            });
         }
 
         let mut returned = 0;

@@ -149,7 +149,8 @@ impl GraphSlam {
         }
         // Odometry: edge k joins poses k and k + 1; block i is pose anchor + 1 + i.
         for k in anchor..anchor + m {
-            let (delta, info) = &self.odometry[k];
+            let odometry = &self.odometry[k];
+            let (delta, info) = (&odometry.delta, &odometry.information);
             let edge = EdgeSE2::new(*delta);
             let (xi, xj) = (&self.poses[k].pose, &self.poses[k + 1].pose);
             let e = edge.error(xi, xj);
