@@ -273,10 +273,37 @@ impl BinaryEdge<4, 4, 4> for OdometryBias {
     const NAME: &'static str = "EDGE_SE2_YAW_BIAS";
 
     fn error(&self, a: &PoseBias, b: &PoseBias) -> Vector4<f64> {
-        let turn = self.delta.theta + (self.bias_used - a.bias) * self.dt;
-        let delta = SE2::new(self.delta.t.x, self.delta.t.y, turn);
-        let e = EdgeSE2::new(delta).error(&a.pose, &b.pose);
+        let e = EdgeSE2::new(self.corrected(a)).error(&a.pose, &b.pose);
         Vector4::new(e.x, e.y, e.z, b.bias - a.bias)
+    }
+
+    fn jacobians(&self, a: &PoseBias, b: &PoseBias) -> (Matrix4<f64>, Matrix4<f64>) {
+        let delta = self.corrected(a);
+        let (ji, jj) = EdgeSE2::new(delta).jacobians(&a.pose, &b.pose);
+        // e = (R(turn)ᵀ (Rₐᵀ(t_b − t_a) − Δt), θ_b − θ_a − turn) and
+        // turn = Δθ + (bias_used − bias_a)·dt.
+        let p = a.pose.rotation().transpose() * (b.pose.t - a.pose.t) - delta.t;
+        let (s, c) = delta.theta.sin_cos();
+        let d_rt = Matrix2::new(-s, c, -c, -s);
+        let de_dturn = d_rt * p;
+        let mut j1 = Matrix4::zeros();
+        j1.fixed_view_mut::<3, 3>(0, 0).copy_from(&ji);
+        j1[(0, 3)] = -self.dt * de_dturn.x;
+        j1[(1, 3)] = -self.dt * de_dturn.y;
+        j1[(2, 3)] = self.dt;
+        j1[(3, 3)] = -1.0;
+        let mut j2 = Matrix4::zeros();
+        j2.fixed_view_mut::<3, 3>(0, 0).copy_from(&jj);
+        j2[(3, 3)] = 1.0;
+        (j1, j2)
+    }
+}
+
+impl OdometryBias {
+    /// The measured motion with the bias of `a` taken out of its turn.
+    fn corrected(&self, a: &PoseBias) -> SE2 {
+        let turn = self.delta.theta + (self.bias_used - a.bias) * self.dt;
+        SE2::new(self.delta.t.x, self.delta.t.y, turn)
     }
 }
 
@@ -355,6 +382,28 @@ mod tests {
             assert!((jx - nx).amax() < 1e-6, "{jx} vs {nx}");
             assert!((jl - nl).amax() < 1e-6, "{jl} vs {nl}");
             assert_eq!(jx.column(3).amax(), 0.0);
+        }
+    }
+
+    #[test]
+    fn the_odometry_jacobians_match_central_differences() {
+        let mut rng = StdRng::seed_from_u64(8);
+        for _ in 0..200 {
+            let a = random_pose(&mut rng);
+            let b = random_pose(&mut rng);
+            let edge = OdometryBias {
+                delta: SE2::new(
+                    rng.random_range(0.0..1.0),
+                    rng.random_range(-0.1..0.1),
+                    rng.random_range(-0.3..0.3),
+                ),
+                dt: rng.random_range(0.05..0.2),
+                bias_used: rng.random_range(-0.01..0.01),
+            };
+            let (j1, j2) = edge.jacobians(&a, &b);
+            let (n1, n2) = numeric_binary(&edge, &a, &b);
+            assert!((j1 - n1).amax() < 1e-6, "{j1} vs {n1}");
+            assert!((j2 - n2).amax() < 1e-6, "{j2} vs {n2}");
         }
     }
 
