@@ -105,13 +105,20 @@ impl<'a> EstimatorBuilder<'a> {
     /// The estimator.
     pub fn build(&self) -> Box<dyn Estimator> {
         match &self.points {
-            Some(points) => Box::new(Clustered::new(self.build_inner(), points.clone())),
-            None => self.build_inner(),
+            Some(points) => {
+                // Clusters carry no colour, so an unknown reading says
+                // nothing about clutter.
+                let config = FrontEndConfig {
+                    color_unknown: 1.0,
+                    ..self.config.clone()
+                };
+                Box::new(Clustered::new(self.build_inner(config), points.clone()))
+            }
+            None => self.build_inner(self.config.clone()),
         }
     }
 
-    fn build_inner(&self) -> Box<dyn Estimator> {
-        let config = self.config.clone();
+    fn build_inner(&self, config: FrontEndConfig) -> Box<dyn Estimator> {
         match self.kind {
             EstimatorKind::Graph => Box::new(match self.map {
                 Some(map) => GraphSlam::with_map(config, map),

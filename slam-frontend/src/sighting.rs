@@ -15,8 +15,11 @@ pub const NEAR_START: f64 = 12.0;
 /// The shortest loop (m).
 pub const MIN_LOOP: f64 = 60.0;
 
-/// Known-colour sightings before a landmark can be judged of mixed colours.
-const MIXED_AFTER: u32 = 8;
+/// Sightings before a landmark's colours can call it clutter.
+const JUDGE_AFTER: u32 = 6;
+
+/// Log odds from which a landmark's colours call it clutter (20 : 1).
+const CLUTTER_LOG_ODDS: f64 = 6.0;
 
 /// Where a landmark stands relative to the car's view.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -147,32 +150,62 @@ impl Sighting {
         }
     }
 
-    /// Whether the colour votes are split between known colours. A cone's
-    /// colour is misread now and then; an object whose colour keeps
-    /// changing (a sign, a person, a traffic barrel) is clutter, not a cone.
-    pub fn mixed_colours(&self) -> bool {
-        let votes = Color::KNOWN.map(|c| self.votes[c.index()]);
-        let known: u32 = votes.iter().sum();
-        let top = votes.iter().copied().max().unwrap_or(0);
-        known >= MIXED_AFTER && 3 * top < 2 * known
+    /// Log odds that this is clutter rather than a cone, from its colour
+    /// votes. A cone is read as its own colour but for `color_wrong` (one
+    /// other colour) and `color_unknown` of the time; an object that is not
+    /// a cone (a sign, a person, a traffic barrel) is read as blue, yellow
+    /// or unknown about equally often.
+    pub fn clutter_log_odds(&self, config: &FrontEndConfig) -> f64 {
+        let top = Color::KNOWN
+            .into_iter()
+            .max_by_key(|c| self.votes[c.index()])
+            .unwrap_or(Color::Blue);
+        let wrong = config.color_wrong.clamp(1e-3, 0.3);
+        let unknown = config.color_unknown.clamp(1e-3, 1.0);
+        let cone = |c: Color| match c {
+            Color::Unknown => unknown,
+            c if c == top => (1.0 - wrong - unknown).max(1e-3),
+            _ => wrong,
+        };
+        let clutter = |c: Color| match c {
+            Color::Blue | Color::Yellow | Color::Unknown => 1.0 / 3.0,
+            Color::Orange | Color::BigOrange => 1e-3,
+        };
+        [
+            Color::Blue,
+            Color::Yellow,
+            Color::Orange,
+            Color::BigOrange,
+            Color::Unknown,
+        ]
+        .into_iter()
+        .map(|c| self.votes[c.index()] as f64 * (clutter(c) / cone(c)).ln())
+        .sum()
+    }
+
+    /// Whether the colour votes say clutter: [`CLUTTER_LOG_ODDS`] or more,
+    /// after [`JUDGE_AFTER`] sightings.
+    pub fn looks_like_clutter(&self, config: &FrontEndConfig) -> bool {
+        self.seen >= JUDGE_AFTER && self.clutter_log_odds(config) >= CLUTTER_LOG_ODDS
     }
 
     /// Updates the counts and the view after a scan: `visible` says whether
     /// the landmark should have been seen, `associated` whether it was.
     /// Returns whether it should be dropped while mapping: missed more often
-    /// than seen, or of [mixed colours](Self::mixed_colours).
+    /// than seen, or [clutter by its colours](Self::looks_like_clutter).
     pub fn after_scan(
         &mut self,
+        config: &FrontEndConfig,
         visible: bool,
         associated: bool,
         mapping: bool,
         scan: usize,
         distance: f64,
     ) -> bool {
-        let mut drop = mapping && self.mixed_colours();
+        let mut drop = mapping && self.looks_like_clutter(config);
         if visible && !associated && mapping {
             self.missed += 1;
-            drop = self.missed > self.seen + 1 && !(self.confirmed && self.seen >= 10);
+            drop |= self.missed > self.seen + 1 && !(self.confirmed && self.seen >= 10);
         }
         if !visible && scan > self.last_seen + 10 && distance > self.last_seen_distance + 20.0 {
             self.view = View::Left;
@@ -199,22 +232,37 @@ mod tests {
 
     #[test]
     fn a_cone_misread_now_and_then_is_not_clutter_but_a_colour_flipping_object_is() {
+        let config = FrontEndConfig::default();
         let mut cone = Sighting::new(Color::Blue, 0, 0.0, 0.0);
         let mut clutter = cone.clone();
         for k in 0..20 {
-            cone.count(if k == 7 { Color::Yellow } else { Color::Blue }, 3);
-            let flip = [Color::Blue, Color::Yellow, Color::Unknown][k % 3];
-            clutter.count(flip, 3);
-            assert!(!cone.mixed_colours(), "after {k}: {cone:?}");
+            let read = match k {
+                7 => Color::Yellow,
+                12 => Color::Unknown,
+                _ => Color::Blue,
+            };
+            cone.count(read, 3);
+            clutter.count([Color::Blue, Color::Yellow, Color::Unknown][k % 3], 3);
+            assert!(!cone.looks_like_clutter(&config), "after {k}: {cone:?}");
         }
-        assert!(clutter.mixed_colours(), "{clutter:?}");
-        // Too few known-colour votes to judge.
-        let mut young = Sighting::new(Color::Blue, 0, 0.0, 0.0);
-        young.count(Color::Yellow, 3);
-        young.count(Color::Blue, 3);
-        assert!(!young.mixed_colours());
+        assert!(clutter.looks_like_clutter(&config), "{clutter:?}");
+        // Six sightings of a clutter object: already clear.
+        let mut few = Sighting::new(Color::Blue, 0, 0.0, 0.0);
+        for read in [Color::Yellow, Color::Unknown, Color::Yellow, Color::Blue] {
+            few.count(read, 3);
+            assert!(!few.looks_like_clutter(&config), "judged early: {few:?}");
+        }
+        for read in [Color::Unknown, Color::Yellow] {
+            few.count(read, 3);
+        }
+        assert!(few.looks_like_clutter(&config), "{few:?}");
+        // A young cone read as unknown twice is not judged yet.
+        let mut young = Sighting::new(Color::Unknown, 0, 0.0, 0.0);
+        young.count(Color::Unknown, 3);
+        young.count(Color::Unknown, 3);
+        assert!(!young.looks_like_clutter(&config));
         // Dropped only while mapping.
-        assert!(clutter.after_scan(false, false, true, 30, 0.0));
-        assert!(!clutter.after_scan(false, false, false, 31, 0.0));
+        assert!(clutter.after_scan(&config, false, false, true, 30, 0.0));
+        assert!(!clutter.after_scan(&config, false, false, false, 31, 0.0));
     }
 }

@@ -162,7 +162,8 @@ fn the_loop_closure_learns_the_yaw_rate_bias() {
     // calibration follows each scan's noisy heading correction; the full
     // optimisation fits the bias to the whole lap.
     let (track, course) = random_track(2, &TrackRules::default());
-    for seed in [3, 4] {
+    let (mut online_error, mut fitted_error) = (0.0, 0.0);
+    for seed in 1..=6 {
         let config = SimConfig {
             seed,
             ..SimConfig::default()
@@ -170,24 +171,27 @@ fn the_loop_closure_learns_the_yaw_rate_bias() {
         let truth = config.preset.odometry.yaw_rate_bias;
         let sim = simulate(&track, &course, &config);
         let mut slam = GraphSlam::new(FrontEndConfig::default());
-        let mut online = None;
+        let mut online = 0.0;
         for r in &sim.log {
             if slam.loop_closures() == 0 {
-                online = Some(slam.calibration().yaw_rate_bias);
+                online = slam.calibration().yaw_rate_bias;
             }
             slam.process(r);
             if slam.loop_closures() == 1 {
                 break;
             }
         }
-        let (online, fitted) = (online.unwrap(), slam.calibration().yaw_rate_bias);
-        assert_eq!(slam.loop_closures(), 1);
-        assert!((fitted - truth).abs() < 2e-4, "seed {seed}: {fitted}");
-        assert!(
-            (fitted - truth).abs() < (online - truth).abs(),
-            "seed {seed}: online {online}, fitted {fitted}"
-        );
+        let fitted = slam.calibration().yaw_rate_bias;
+        println!("seed {seed}: online {online}, fitted {fitted}");
+        assert_eq!(slam.loop_closures(), 1, "seed {seed}");
+        assert!((fitted - truth).abs() < 3e-4, "seed {seed}: {fitted}");
+        online_error += (online - truth).abs();
+        fitted_error += (fitted - truth).abs();
     }
+    assert!(
+        fitted_error < 0.5 * online_error,
+        "fitted {fitted_error}, online {online_error}"
+    );
 }
 
 #[test]

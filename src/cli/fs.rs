@@ -163,6 +163,8 @@ pub fn front_end_config(preset: &Preset, association: AssociationMethod) -> Fron
         speed_sigma_relative: 2.0 * preset.odometry.speed_scale_bias + 0.01,
         yaw_rate_sigma: 2.0 * preset.odometry.yaw_rate_bias + 0.015,
         yaw_rate_noise: preset.odometry.yaw_rate_sigma,
+        color_wrong: s.wrong_color,
+        color_unknown: s.unknown_color,
         ..FrontEndConfig::default()
     }
 }

@@ -443,7 +443,7 @@ impl EkfSlam {
             let seen = associated.get(l).copied().unwrap_or(true);
             if lm
                 .sighting
-                .after_scan(visible, seen, mapping, scan, distance)
+                .after_scan(&self.run.config, visible, seen, mapping, scan, distance)
             {
                 dropped.push(l);
             }

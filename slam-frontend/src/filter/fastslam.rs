@@ -275,8 +275,9 @@ impl FastSlam {
         align::recognise(
             &old,
             cones,
+            cones,
             &particle.pose,
-            self.run.config.loop_min_returned,
+            self.run.config.loop_min_returned.max(cones.len() / 2),
             // A particle's drift can exceed half a cone spacing.
             align::MAX_SHIFT,
         )
@@ -471,7 +472,8 @@ impl FastSlam {
                 log_weight += settings.missed_log_weight;
             }
             let mut sighting = slot.sighting.clone();
-            let drop = sighting.after_scan(visible, associated[l], !localising, scan, distance);
+            let drop =
+                sighting.after_scan(config, visible, associated[l], !localising, scan, distance);
             if drop || sighting != slot.sighting {
                 let lm = Rc::make_mut(slot);
                 lm.sighting = sighting;

@@ -32,7 +32,7 @@ pub fn place(map: &[(Vector2<f64>, Color)], detections: &[Detection], here: &SE2
 
 /// Place recognition at the end of a lap: the pose near `pose` that puts
 /// the scan on `old` landmarks (those that left the view long ago), when at
-/// least `min_inliers` detections (and half the scan) agree. Drift can put
+/// least `needed` detections agree. Drift can put
 /// returning landmarks outside the association gates; this finds them
 /// geometrically.
 ///
@@ -45,14 +45,15 @@ pub fn place(map: &[(Vector2<f64>, Color)], detections: &[Detection], here: &SE2
 pub fn recognise(
     old: &[(Vector2<f64>, Color)],
     detections: &[Detection],
+    proposers: &[Detection],
     pose: &SE2,
-    min_inliers: usize,
+    needed: usize,
     unambiguous: f64,
 ) -> Option<SE2> {
-    if old.len() < min_inliers {
+    if old.len() < needed {
         return None;
     }
-    let fits = fits(old, detections, Some((pose, MAX_SHIFT)));
+    let fits = fits(old, detections, proposers, Some((pose, MAX_SHIFT)));
     let anchored = |f: &Fit| {
         pose.between(&f.pose).t.norm() <= unambiguous || f.start_line >= START_LINE_INLIERS
     };
@@ -67,7 +68,7 @@ pub fn recognise(
         .map(|f| f.score)
         .max_by(f64::total_cmp);
     let clear = rival.is_none_or(|r| best.score - r >= MARGIN);
-    (clear && best.inliers >= min_inliers.max(detections.len() / 2)).then_some(best.pose)
+    (clear && best.inliers >= needed).then_some(best.pose)
 }
 
 /// Big orange detections on big orange landmarks that anchor a large
@@ -86,14 +87,16 @@ const DRIFT: (f64, f64) = (2.0, 0.1);
 /// The pose that puts most detections on map cones of a compatible colour,
 /// and how many agree.
 pub fn align(map: &[(Vector2<f64>, Color)], detections: &[Detection]) -> Option<(SE2, usize)> {
-    fits(map, detections, None)
+    fits(map, detections, detections, None)
         .into_iter()
         .max_by(|a, b| a.score.total_cmp(&b.score))
         .map(|f| (f.pose, f.inliers))
 }
 
 /// A candidate alignment: the pose, how many detections it puts on map
-/// cones, and that count plus the log-prior.
+/// cones, and its score: that count, plus the start line's big orange
+/// cones again (they are rare, so a fit that places them is unlikely by
+/// chance), plus the log-prior.
 struct Fit {
     pose: SE2,
     inliers: usize,
@@ -102,13 +105,14 @@ struct Fit {
     score: f64,
 }
 
-/// Every alignment that two detections and two map cones of compatible
-/// colours and equal spacing propose. With a `prior` (pose, largest
+/// Every alignment that two of the `proposers` and two map cones of
+/// compatible colours and equal spacing propose, scored on `detections`. With a `prior` (pose, largest
 /// shift), only poses within that shift count, and each also pays for its
 /// distance from the prior pose (a Gaussian log-prior with [`DRIFT`] σ).
 fn fits(
     map: &[(Vector2<f64>, Color)],
     detections: &[Detection],
+    proposers: &[Detection],
     prior: Option<(&SE2, f64)>,
 ) -> Vec<Fit> {
     // Log-prior, or None beyond the largest shift.
@@ -139,7 +143,7 @@ fn fits(
         counts
     };
     // The nearest detections are the most precise.
-    let mut near: Vec<&Detection> = detections.iter().collect();
+    let mut near: Vec<&Detection> = proposers.iter().collect();
     near.sort_by(|a, b| a.position.norm().total_cmp(&b.position.norm()));
     near.truncate(8);
     let mut fits = Vec::new();
@@ -167,7 +171,7 @@ fn fits(
                         pose,
                         inliers,
                         start_line,
-                        score: inliers as f64 + log_prior,
+                        score: (inliers + start_line) as f64 + log_prior,
                     });
                 }
             }
@@ -186,16 +190,20 @@ pub fn unambiguous_shift(map: &[(Vector2<f64>, Color)]) -> f64 {
 /// Largest correction when the drift may exceed half a cone spacing (m).
 pub const MAX_SHIFT: f64 = 8.0;
 
-/// Median distance from each cone to the nearest one of a compatible
-/// colour (m); 5 m, the rules' largest spacing, when there are too few.
+/// Median distance from each boundary cone to the nearest one of a
+/// compatible colour (m); 5 m, the rules' largest spacing, when there are
+/// too few. The start line's orange cones stand closer and would make the
+/// track look denser than it is.
 fn spacing(map: &[(Vector2<f64>, Color)]) -> f64 {
+    let boundary = |c: &Color| !matches!(c, Color::Orange | Color::BigOrange);
     let mut gaps: Vec<f64> = map
         .iter()
         .enumerate()
+        .filter(|(_, (_, c))| boundary(c))
         .filter_map(|(i, (p, c))| {
             map.iter()
                 .enumerate()
-                .filter(|&(j, (_, d))| j != i && c.compatible(*d))
+                .filter(|&(j, (_, d))| j != i && boundary(d) && c.compatible(*d))
                 .map(|(_, (q, _))| (q - p).norm())
                 .min_by(f64::total_cmp)
         })
@@ -255,6 +263,8 @@ mod tests {
     fn the_spacing_of_a_row_is_its_cone_gap() {
         assert!((spacing(&row()) - 3.0).abs() < 1e-9);
         assert!((unambiguous_shift(&row()) - 1.35).abs() < 1e-9);
+        // The start line's orange cones, 1 m apart, do not count.
+        assert!((spacing(&row_with_start_line()) - 3.0).abs() < 1e-9);
         assert_eq!(spacing(&row()[..2]), 5.0);
     }
 
@@ -284,7 +294,14 @@ mod tests {
         let truth = SE2::new(12.0, 0.2, 0.02);
         let drifted = SE2::new(12.3, 0.1, 0.0);
         let limit = unambiguous_shift(&map);
-        let found = recognise(&map, &scan(&map, &truth), &drifted, 4, limit);
+        let found = recognise(
+            &map,
+            &scan(&map, &truth),
+            &scan(&map, &truth),
+            &drifted,
+            4,
+            limit,
+        );
         assert_same(found, &truth);
     }
 
@@ -297,7 +314,17 @@ mod tests {
         let truth = SE2::new(10.0, 0.2, 0.02);
         let drifted = SE2::new(11.7, 0.2, 0.02);
         let limit = unambiguous_shift(&map);
-        assert!(recognise(&map, &scan(&map, &truth), &drifted, 4, limit).is_none());
+        assert!(
+            recognise(
+                &map,
+                &scan(&map, &truth),
+                &scan(&map, &truth),
+                &drifted,
+                4,
+                limit
+            )
+            .is_none()
+        );
     }
 
     #[test]
@@ -306,7 +333,14 @@ mod tests {
         let truth = SE2::new(10.0, 0.2, 0.02);
         let drifted = SE2::new(11.7, 0.2, 0.02);
         let limit = unambiguous_shift(&row());
-        let found = recognise(&map, &scan(&map, &truth), &drifted, 4, limit);
+        let found = recognise(
+            &map,
+            &scan(&map, &truth),
+            &scan(&map, &truth),
+            &drifted,
+            4,
+            limit,
+        );
         assert_same(found, &truth);
         // Seeing one orange pair is not enough: one spacing on, it could
         // be the other pair.
@@ -314,6 +348,6 @@ mod tests {
             .into_iter()
             .filter(|d| d.color != Color::BigOrange || d.position.x < 6.5)
             .collect();
-        assert!(recognise(&map, &one_pair, &drifted, 4, limit).is_none());
+        assert!(recognise(&map, &one_pair, &one_pair, &drifted, 4, limit).is_none());
     }
 }

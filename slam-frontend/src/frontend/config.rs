@@ -42,6 +42,11 @@ pub struct FrontEndConfig {
     pub new_landmark_gate: f64,
     /// Penalty added to χ² when the detection's colour contradicts the landmark's.
     pub color_penalty: f64,
+    /// How often the detector reads a cone as another known colour, and as
+    /// unknown: landmarks whose colours fit a cone's far worse are clutter.
+    pub color_wrong: f64,
+    /// See `color_wrong`.
+    pub color_unknown: f64,
     /// Sightings before a tentative landmark joins the map.
     pub confirm_after: u32,
     /// Landmarks that return after leaving the view, needed in one scan to
@@ -69,6 +74,8 @@ impl Default for FrontEndConfig {
             gate: 9.21,
             new_landmark_gate: 25.0,
             color_penalty: 6.0,
+            color_wrong: 0.02,
+            color_unknown: 0.05,
             confirm_after: 3,
             loop_min_returned: 4,
             localise_after_loop: true,

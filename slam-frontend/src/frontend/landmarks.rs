@@ -100,15 +100,16 @@ impl GraphSlam {
         let inverse = pose.inverse();
         let mapping = self.mode == Mode::Mapping;
         let distance = self.motion.distance();
+        let config = &self.config;
         for (l, lm) in self.landmarks.iter_mut().enumerate() {
             if lm.removed || self.alias[l] != l {
                 continue;
             }
-            let visible = in_view(&self.config, &inverse, &lm.mean);
+            let visible = in_view(config, &inverse, &lm.mean);
             let seen = associated.get(l).copied().unwrap_or(false);
             if lm
                 .sighting
-                .after_scan(visible, seen, mapping, scan, distance)
+                .after_scan(config, visible, seen, mapping, scan, distance)
             {
                 lm.removed = true;
             }

@@ -54,15 +54,30 @@ impl GraphSlam {
             .iter()
             .map(|&l| (self.landmarks[l].mean, self.landmarks[l].sighting.color()))
             .collect();
-        let min_inliers = self.config.loop_min_returned;
+        // Near the start the gates leave the old landmarks alone, so the
+        // detections they matched to confirmed landmarks belong to the
+        // lap's end. The rest (unmatched, or on tentative landmarks the
+        // drift made) propose the alignments, and at least half of them
+        // (or of the old landmarks near) must agree.
+        let first = self.detections.len() - cones.len();
+        let unexplained: Vec<Detection> = cones
+            .iter()
+            .zip(&self.detections[first..])
+            .filter(|(_, d)| d.2.is_none_or(|l| !self.landmarks[l].sighting.confirmed))
+            .map(|(c, _)| c.clone())
+            .collect();
+        let needed = self
+            .config
+            .loop_min_returned
+            .max(unexplained.len().min(old.len()) / 2);
         // A correction of half a cone spacing or more could as well be one
         // spacing off; the start line's orange cones must confirm it.
         let unambiguous = align::unambiguous_shift(&map);
-        let Some(aligned) = align::recognise(&map, cones, &self.pose, min_inliers, unambiguous)
+        let Some(aligned) =
+            align::recognise(&map, cones, &unexplained, &self.pose, needed, unambiguous)
         else {
             return false;
         };
-        let first = self.detections.len() - cones.len();
         for (i, d) in cones.iter().enumerate() {
             let w = aligned.transform_point(&d.position);
             let nearest = old
