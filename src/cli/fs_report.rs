@@ -5,6 +5,7 @@
 use super::fs::{front_end_config, plot_run};
 use cairn::slam::Track;
 use cairn::slam::course::Course;
+use cairn::slam::estimator::EstimatorKind;
 use cairn::slam::eval::Report;
 use cairn::slam::frontend::association::AssociationMethod;
 use cairn::slam::run::run_and_score;
@@ -68,7 +69,10 @@ pub fn run(a: ReportArgs) -> Result<(), String> {
                 ..SimConfig::default()
             };
             let sim = simulate(track, course, &config);
-            let (slam, report) = run_and_score(&sim, front_end_config(preset, *method));
+            let (slam, report) = run_and_score(
+                &sim,
+                front_end_config(preset, *method, EstimatorKind::Graph),
+            );
             Run {
                 track: *t,
                 preset: preset.name,
@@ -194,7 +198,11 @@ pub fn run(a: ReportArgs) -> Result<(), String> {
         let sim = simulate(track, course, &config);
         let (slam, _) = run_and_score(
             &sim,
-            front_end_config(&config.preset, AssociationMethod::Tracking),
+            front_end_config(
+                &config.preset,
+                AssociationMethod::Tracking,
+                EstimatorKind::Graph,
+            ),
         );
         let file = format!("{}.svg", track.name);
         plot_run(

@@ -110,7 +110,8 @@ pub fn run(a: StudyArgs) -> Result<(), String> {
         .par_iter()
         .map(|(t, preset, kind, method, seed)| {
             let sim = simulate_on(&tracks[*t], preset, *seed);
-            let mut builder = EstimatorBuilder::new(*kind, front_end_config(preset, *method));
+            let mut builder =
+                EstimatorBuilder::new(*kind, front_end_config(preset, *method, *kind));
             builder.particles = a.particles;
             builder.seed = *seed;
             let (slam, report) = run_estimator(&sim, &builder);
@@ -302,7 +303,7 @@ fn rmse_by_distance(
     }
     let mut builder = EstimatorBuilder::new(
         kind,
-        front_end_config(&Preset::standard(), AssociationMethod::Tracking),
+        front_end_config(&Preset::standard(), AssociationMethod::Tracking, kind),
     );
     builder.particles = particles;
     let mut slam = builder.build();
@@ -360,7 +361,7 @@ fn particle_study(
         .map(|&(kind, n, seed)| {
             let mut builder = EstimatorBuilder::new(
                 kind,
-                front_end_config(&Preset::standard(), AssociationMethod::Tracking),
+                front_end_config(&Preset::standard(), AssociationMethod::Tracking, kind),
             );
             builder.particles = n;
             builder.seed = seed;
@@ -429,7 +430,8 @@ fn noise_study(md: &mut String, track: &(Track, Course), preset: &Preset) -> Res
         .par_iter()
         .map(|&(k, seed)| {
             let sim = simulate_on(track, preset, seed);
-            let mut config: FrontEndConfig = front_end_config(preset, AssociationMethod::Tracking);
+            let mut config: FrontEndConfig =
+                front_end_config(preset, AssociationMethod::Tracking, EstimatorKind::Ekf);
             let f = k.sqrt();
             config.range_sigma *= f;
             config.range_sigma_relative *= f;
