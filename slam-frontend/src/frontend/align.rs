@@ -279,8 +279,21 @@ mod tests {
         map
     }
 
+    /// Recognition of what a car at `truth` sees, from the estimate `drifted`.
+    fn recognise_from(
+        map: &[(Vector2<f64>, Color)],
+        truth: &SE2,
+        drifted: &SE2,
+        unambiguous: f64,
+    ) -> Option<SE2> {
+        let detections = scan(map, truth);
+        recognise(map, &detections, &detections, drifted, 4, unambiguous)
+    }
+
     fn assert_same(found: Option<SE2>, truth: &SE2) {
-        let found = found.expect("recognised");
+        let Some(found) = found else {
+            panic!("not recognised, expected {truth:?}");
+        };
         assert!((found.t - truth.t).norm() < 1e-6, "{found:?}");
         assert!((found.theta - truth.theta).abs() < 1e-6, "{found:?}");
     }
@@ -294,14 +307,7 @@ mod tests {
         let truth = SE2::new(12.0, 0.2, 0.02);
         let drifted = SE2::new(12.3, 0.1, 0.0);
         let limit = unambiguous_shift(&map);
-        let found = recognise(
-            &map,
-            &scan(&map, &truth),
-            &scan(&map, &truth),
-            &drifted,
-            4,
-            limit,
-        );
+        let found = recognise_from(&map, &truth, &drifted, limit);
         assert_same(found, &truth);
     }
 
@@ -314,17 +320,7 @@ mod tests {
         let truth = SE2::new(10.0, 0.2, 0.02);
         let drifted = SE2::new(11.7, 0.2, 0.02);
         let limit = unambiguous_shift(&map);
-        assert!(
-            recognise(
-                &map,
-                &scan(&map, &truth),
-                &scan(&map, &truth),
-                &drifted,
-                4,
-                limit
-            )
-            .is_none()
-        );
+        assert!(recognise_from(&map, &truth, &drifted, limit).is_none());
     }
 
     #[test]
@@ -333,14 +329,7 @@ mod tests {
         let truth = SE2::new(10.0, 0.2, 0.02);
         let drifted = SE2::new(11.7, 0.2, 0.02);
         let limit = unambiguous_shift(&row());
-        let found = recognise(
-            &map,
-            &scan(&map, &truth),
-            &scan(&map, &truth),
-            &drifted,
-            4,
-            limit,
-        );
+        let found = recognise_from(&map, &truth, &drifted, limit);
         assert_same(found, &truth);
         // Seeing one orange pair is not enough: one spacing on, it could
         // be the other pair.
