@@ -20,8 +20,10 @@ impl GraphSlam {
     /// Whether landmark `l` is a start-area landmark waiting for the lap to
     /// close. The gates assume the pose and the landmark are known to a few
     /// centimetres of each other, which a lap of drift breaks: near a cone
-    /// spacing they match the wrong cones and bend the whole loop. So these
-    /// landmarks are matched only through place recognition.
+    /// spacing they match the wrong cones and bend the whole loop. So once
+    /// the car is back near the start, these landmarks are left out of the
+    /// gates ([`Self::candidates`]) and matched only through place
+    /// recognition.
     pub(super) fn awaits_loop_closure(&self, l: usize) -> bool {
         self.mode == Mode::Mapping
             && self.landmarks[l].sighting.view == View::Left
