@@ -6,7 +6,7 @@
 use crate::files::{Association, StampedPose};
 use crate::filter::ekf::EkfSlam;
 use crate::filter::fastslam::{FastSlam, ParticleConfig, Version};
-use crate::frontend::{FrontEndConfig, GraphSlam, Mode, Timing};
+use crate::frontend::{FrontEndConfig, GraphSlam, Mode, OptimiseError, Timing};
 use crate::log::Record;
 use crate::points::{Clustered, PointCloudConfig};
 use crate::track::Cone;
@@ -27,6 +27,11 @@ pub trait Estimator {
     fn loop_closures(&self) -> usize;
     /// Mapping or localising.
     fn mode(&self) -> Mode;
+    /// Ends the run after the last record (the graph front end's final
+    /// optimisation, [`GraphSlam::finish`]); the filters have nothing to do.
+    fn finish(&mut self) -> Result<(), OptimiseError> {
+        Ok(())
+    }
 }
 
 /// The estimators, by command-line name.
@@ -159,6 +164,9 @@ impl<'a> EstimatorBuilder<'a> {
 impl Estimator for GraphSlam {
     fn process(&mut self, record: &Record) {
         GraphSlam::process(self, record)
+    }
+    fn finish(&mut self) -> Result<(), OptimiseError> {
+        GraphSlam::finish(self)
     }
     fn map(&self) -> Vec<Cone> {
         GraphSlam::map(self)

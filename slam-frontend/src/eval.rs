@@ -39,6 +39,8 @@ pub struct Report {
     pub latency_ms: Option<[f64; 3]>,
     /// Longest loop-closure optimisation (ms).
     pub loop_closure_ms: Option<f64>,
+    /// The optimisation at the end of the run (ms).
+    pub final_optimisation_ms: Option<f64>,
 }
 
 /// Scores a run.

@@ -358,6 +358,9 @@ impl Estimator for Clustered {
             _ => self.inner.process(record),
         }
     }
+    fn finish(&mut self) -> Result<(), crate::frontend::OptimiseError> {
+        self.inner.finish()
+    }
     fn map(&self) -> Vec<Cone> {
         self.inner.map()
     }

@@ -313,6 +313,9 @@ pub fn run_slam(a: SlamArgs) -> Result<(), String> {
     for record in &log.records {
         slam.process(record);
     }
+    if let Err(e) = slam.finish() {
+        eprintln!("warning: the final optimisation failed ({e}); writing the estimate as it was");
+    }
     // Everything is computed before anything is written, so a failure leaves no partial output.
     let map = map_to_csv(&slam.map());
     let traj = files::trajectory_to_tum(&slam.trajectory());
@@ -320,6 +323,7 @@ pub fn run_slam(a: SlamArgs) -> Result<(), String> {
     let timing = serde_json::json!({
         "updates_s": slam.timing().updates,
         "loop_closures_s": slam.timing().loop_closures,
+        "final_s": slam.timing().final_optimisation,
     })
     .to_string();
     for (path, text) in [
@@ -372,6 +376,7 @@ pub fn run_eval(a: EvalArgs) -> Result<(), String> {
             .into_iter()
             .reduce(f64::max)
             .map(|s| s * 1e3);
+        report.final_optimisation_ms = v.get("final_s").and_then(|x| x.as_f64()).map(|s| s * 1e3);
     }
     if let Some(path) = &a.plot {
         plot_run(
@@ -448,6 +453,9 @@ pub fn table(r: &Report) -> String {
     }
     if let Some(ms) = r.loop_closure_ms {
         rows.push(("loop-closure optimisation (ms)".into(), format!("{ms:.1}")));
+    }
+    if let Some(ms) = r.final_optimisation_ms {
+        rows.push(("final optimisation (ms)".into(), format!("{ms:.1}")));
     }
     let width = rows
         .iter()
