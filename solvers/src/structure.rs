@@ -164,20 +164,24 @@ impl HessianStructure {
                 entries: row_idx.len(),
             });
         }
-        let value_index = |r: usize, c: usize, i: usize, j: usize| -> usize {
-            // Entry (i, j) of block (r, c), r before or equal to c.
-            let cc = column[c].unwrap_or(0);
+        // Where block (r, c), r before or equal to c, starts: its first scalar
+        // column and its offset within each of that column's entries. Entry
+        // (i, j) of the block is then at col_ptr[column + j] + offset + i.
+        let block_start = |r: usize, c: usize| -> (usize, usize) {
             // Block rows are sorted by column.
-            let pos = block_pos[c]
+            let offset = block_pos[c]
                 .binary_search_by_key(&column[r], |&(v, _)| column[v])
                 .map(|k| block_pos[c][k].1)
                 .unwrap_or(0);
-            col_ptr[cc + j] + pos + i
+            (column[c].unwrap_or(0), offset)
         };
         let diagonal: Vec<usize> = free
             .iter()
-            .flat_map(|&v| (0..vdim[v]).map(move |j| (v, j)))
-            .map(|(v, j)| value_index(v, v, j, j))
+            .flat_map(|&v| {
+                let (cc, offset) = block_start(v, v);
+                let col_ptr = &col_ptr;
+                (0..vdim[v]).map(move |j| col_ptr[cc + j] + offset + j)
+            })
             .collect();
 
         let mut group_offset = Vec::new();
@@ -199,18 +203,24 @@ impl HessianStructure {
                             continue;
                         };
                         let off = slot + layout::block_offset(dims, p, q);
+                        // The edge's block (p, q) lands transposed when a's
+                        // columns come after b's.
+                        let transposed = ca > cb;
+                        let (cc, offset) = if transposed {
+                            block_start(b, a)
+                        } else {
+                            block_start(a, b)
+                        };
                         for j in 0..dims[q] {
                             for i2 in 0..dims[p] {
+                                if p == q && i2 > j {
+                                    continue;
+                                }
                                 let src = (off + i2 + j * dims[p]) as u32;
-                                let dst = if p == q {
-                                    if i2 > j {
-                                        continue;
-                                    }
-                                    value_index(a, a, i2, j)
-                                } else if ca < cb {
-                                    value_index(a, b, i2, j)
+                                let dst = if transposed {
+                                    col_ptr[cc + i2] + offset + j
                                 } else {
-                                    value_index(b, a, j, i2)
+                                    col_ptr[cc + j] + offset + i2
                                 };
                                 h_pairs.push((dst as u32, src));
                             }

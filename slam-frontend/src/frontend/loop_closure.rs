@@ -124,7 +124,7 @@ impl GraphSlam {
     pub(super) fn close_loop(&mut self) {
         let start = Instant::now();
         self.loop_closures += 1;
-        if let Err(e) = self.optimise(super::optimise::MAX_SIGHTINGS) {
+        if let Err(e) = self.optimise(super::optimise::Batch::loop_closure()) {
             eprintln!("loop closure optimisation failed: {e}");
         }
         self.timing

@@ -70,6 +70,37 @@ struct OdometryEdge {
     heading_variance: f64,
 }
 
+impl OdometryEdge {
+    /// The odometry across consecutive edges, as one edge. The bias taken
+    /// out is their time-weighted mean, so the turn corrected for a bias
+    /// b is the same, Σ (Δθᵢ + (usedᵢ − b)·dtᵢ).
+    fn chain(edges: &[OdometryEdge]) -> OdometryEdge {
+        if let [edge] = edges {
+            return *edge;
+        }
+        let (mut delta, mut cov) = (SE2::identity(), Matrix3::zeros());
+        let (mut dt, mut bias_time, mut heading_variance) = (0.0, 0.0, 0.0);
+        for e in edges {
+            let e_cov = e.information.try_inverse().unwrap_or_else(Matrix3::zeros);
+            (delta, cov) = compose_with_cov(&delta, &cov, &e.delta, &e_cov);
+            dt += e.dt;
+            bias_time += e.yaw_rate_bias * e.dt;
+            heading_variance += e.heading_variance;
+        }
+        OdometryEdge {
+            delta,
+            information: nearest_information(&cov),
+            dt,
+            yaw_rate_bias: if dt > 0.0 {
+                bias_time / dt
+            } else {
+                edges.first().map_or(0.0, |e| e.yaw_rate_bias)
+            },
+            heading_variance,
+        }
+    }
+}
+
 /// Why a full optimisation failed.
 #[derive(Debug, thiserror::Error)]
 pub enum OptimiseError {
@@ -203,7 +234,7 @@ impl GraphSlam {
             return Ok(());
         }
         let start = Instant::now();
-        let result = self.optimise(usize::MAX);
+        let result = self.optimise(optimise::Batch::last());
         self.timing.final_optimisation = Some(start.elapsed().as_secs_f64());
         result
     }
