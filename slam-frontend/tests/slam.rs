@@ -246,6 +246,69 @@ fn the_final_optimisation_refines_the_map_with_the_laps_on_the_fixed_map() {
 }
 
 #[test]
+fn detections_near_the_start_before_the_loop_closes_are_matched_after_it() {
+    // At the lap's end the gates leave the start area's landmarks to place
+    // recognition; once the loop closes, the scans before the one it
+    // recognised are matched again from their optimised poses.
+    let (track, course) = random_track(2, &TrackRules::default());
+    let mut total = 0.0;
+    for seed in 1..=3 {
+        let sim = simulate(
+            &track,
+            &course,
+            &SimConfig {
+                seed,
+                ..SimConfig::default()
+            },
+        );
+        let mut slam = GraphSlam::new(FrontEndConfig::default());
+        let (mut scan, mut closed_at) = (0, None);
+        for r in &sim.log {
+            slam.process(r);
+            if let Record::Cones { .. } = r {
+                scan += 1;
+                if closed_at.is_none() && slam.loop_closures() == 1 {
+                    closed_at = Some(scan - 1);
+                }
+            }
+        }
+        let closed_at = closed_at.expect("the loop closes");
+        // The scans of the lap's last 12 m, the closing one left out.
+        let start = sim.truth[0].pose.t;
+        let scan_pose: Vec<Vector2<f64>> = sim
+            .log
+            .iter()
+            .filter_map(|r| match r {
+                Record::Cones { t, .. } => sim.truth.iter().find(|p| p.t == *t).map(|p| p.pose.t),
+                _ => None,
+            })
+            .collect();
+        let lap_end: Vec<usize> = (closed_at / 2..closed_at)
+            .filter(|&k| (scan_pose[k] - start).norm() < 12.0)
+            .collect();
+        assert!(lap_end.len() >= 5, "seed {seed}: {lap_end:?}");
+        let keep = |a: &&Association| lap_end.contains(&a.scan);
+        let truth: Vec<Association> = sim
+            .truth_associations
+            .iter()
+            .filter(keep)
+            .cloned()
+            .collect();
+        let estimate: Vec<Association> = slam.associations().iter().filter(keep).cloned().collect();
+        let (accuracy, n) = association_accuracy(&truth, &estimate);
+        println!(
+            "seed {seed}: {} scans, {n} detections, {accuracy}",
+            lap_end.len()
+        );
+        total += accuracy;
+    }
+    // Measured 0.97, 0.94, 0.84 (without matching again: 0.74, 0.80, 0.61).
+    // What is left is mostly a cone 2 m from the start, seen twice as the
+    // lap began: too few sightings to confirm, so it is never mapped.
+    assert!(total / 3.0 > 0.88, "{total}");
+}
+
+#[test]
 fn cones_closer_than_the_merge_radius_stay_two_after_the_loop_closes() {
     // EUFS tracks put the start's big orange cones in pairs 0.56 m apart,
     // inside the merge radius: one scan sees both, so the full

@@ -147,7 +147,9 @@ pub fn associate(
 ) -> Vec<Option<usize>> {
     match method {
         AssociationMethod::MaximumLikelihood => {
-            greedy(candidates, &vec![None; candidates.len()], |p| p.cost)
+            let mut result = greedy(candidates, &vec![None; candidates.len()], |p| p.cost);
+            exchange(candidates, &mut result);
+            result
         }
         AssociationMethod::Sequential => sequential(candidates),
         AssociationMethod::Jcbb => jcbb(candidates, correlation, joint_gate),
@@ -165,10 +167,56 @@ pub fn associate(
                     taken.push(l);
                 }
             }
-            greedy(candidates, &fixed, |p| p.bhattacharyya)
+            let mut result = greedy(candidates, &fixed, |p| p.bhattacharyya);
+            exchange(candidates, &mut result);
+            result
         }
     }
 }
+
+/// Gives two detections each other's landmarks when that is more likely
+/// together. Choosing pair by pair (or by tracker id, which keeps a mix-up
+/// for as long as both cones stay in view) can match two cones closer than
+/// the noise the wrong way round; the summed cost, unlike each pair's, does
+/// not depend on an error of the pose that shifts both detections alike.
+fn exchange(candidates: &Candidates, result: &mut [Option<usize>]) {
+    let cost = |i: usize, l: usize| {
+        candidates[i]
+            .iter()
+            .find(|p| p.landmark == l)
+            .map(|p| p.cost)
+    };
+    // Every exchange lowers the total cost, so this ends; the bound keeps
+    // a dense scan's update short. (Also pairing a detection left out when
+    // the one holding its landmark could take a free one measured no
+    // better: association 99.52 → 99.53% on the standard preset, 91.13 →
+    // 90.82% on the hard one, where more pairs means more clutter paired.)
+    for _ in 0..EXCHANGE_PASSES {
+        let mut changed = false;
+        for i in 0..result.len() {
+            for j in i + 1..result.len() {
+                let (Some(a), Some(b)) = (result[i], result[j]) else {
+                    continue;
+                };
+                let (Some(ia), Some(jb), Some(ib), Some(ja)) =
+                    (cost(i, a), cost(j, b), cost(i, b), cost(j, a))
+                else {
+                    continue;
+                };
+                if ib + ja < ia + jb {
+                    result.swap(i, j);
+                    changed = true;
+                }
+            }
+        }
+        if !changed {
+            break;
+        }
+    }
+}
+
+/// Passes of [`exchange`] over a scan.
+const EXCHANGE_PASSES: usize = 3;
 
 /// Best pairs first, each detection and landmark used once; `fixed` pairs stay.
 fn greedy(
@@ -306,5 +354,93 @@ impl<G: Fn(usize) -> f64> Jcbb<'_, G> {
             Some(c) => nu.dot(&c.solve(&nu)),
             None => f64::INFINITY,
         }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// Candidates of detections against landmarks, all in the sensor frame
+    /// with isotropic noise σ (the pose known).
+    fn candidates(
+        detections: &[Vector2<f64>],
+        landmarks: &[Vector2<f64>],
+        sigma: f64,
+    ) -> Candidates {
+        let r = Matrix2::identity() * sigma * sigma / 2.0;
+        detections
+            .iter()
+            .map(|d| {
+                let mut pairs: Vec<Pair> = landmarks
+                    .iter()
+                    .enumerate()
+                    .filter_map(|(l, m)| {
+                        let pose_cov = nalgebra::Matrix3::zeros();
+                        Pair::new(
+                            l,
+                            d - m,
+                            SMatrix::zeros(),
+                            &r,
+                            &r,
+                            &pose_cov,
+                            0.0,
+                            chi2_gate(),
+                        )
+                    })
+                    .collect();
+                pairs.sort_by(|a, b| a.cost.total_cmp(&b.cost));
+                pairs
+            })
+            .collect()
+    }
+
+    fn chi2_gate() -> f64 {
+        13.8
+    }
+
+    fn ml(c: &Candidates) -> Vec<Option<usize>> {
+        let n = c.len();
+        associate(
+            AssociationMethod::MaximumLikelihood,
+            c,
+            &vec![None; n],
+            |_| 0.0,
+            &|_, _| Matrix2::zeros(),
+        )
+    }
+
+    // Two cones 0.3 m apart seen 0.2 m off along the line joining them:
+    // each detection alone is nearer the other cone.
+    fn pair_shifted() -> (Vec<Vector2<f64>>, Vec<Vector2<f64>>) {
+        let landmarks = vec![Vector2::new(10.0, 0.0), Vector2::new(10.0, 0.3)];
+        let shift = Vector2::new(0.0, 0.2);
+        (landmarks.iter().map(|l| l + shift).collect(), landmarks)
+    }
+
+    #[test]
+    fn a_shared_shift_does_not_swap_two_close_cones() {
+        let (d, l) = pair_shifted();
+        let c = candidates(&d, &l, 0.2);
+        assert_eq!(
+            greedy(&c, &[None, None], |p| p.cost),
+            vec![Some(1), Some(0)]
+        );
+        assert_eq!(ml(&c), vec![Some(0), Some(1)]);
+    }
+
+    #[test]
+    fn tracker_ids_that_mix_up_two_cones_are_put_right() {
+        let (d, l) = pair_shifted();
+        let c = candidates(&d, &l, 0.2);
+        let tracked = [Some(1), Some(0)];
+        let result = associate(
+            AssociationMethod::Tracking,
+            &c,
+            &tracked,
+            |_| 0.0,
+            &|_, _| Matrix2::zeros(),
+        );
+        assert_eq!(result, vec![Some(0), Some(1)]);
     }
 }

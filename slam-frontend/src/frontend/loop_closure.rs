@@ -2,12 +2,23 @@
 //! recognition when drift hides them from the gates, the full optimisation
 //! that follows, and placing the car on a given map.
 
-use super::{GraphSlam, Mode, Observation, align, nearest_information2};
+use super::association::{AssociationMethod, associate, through_pose};
+use super::{GraphSlam, Mode, Observation, align, chi2_99, nearest_information2};
 use crate::color::Color;
 use crate::log::Detection;
 use crate::sighting::View;
 use nalgebra::{Matrix2, Matrix3, Vector2};
 use std::time::Instant;
+
+/// A scan near the start, kept until the loop closes.
+pub(super) struct PendingScan {
+    /// Its pose.
+    pub keyframe: usize,
+    /// Its first detection in [`GraphSlam::detections`].
+    pub first: usize,
+    /// Its detections.
+    pub cones: Vec<Detection>,
+}
 
 impl GraphSlam {
     /// Whether landmark `l` marks the start of the lap ([`Sighting::is_start_area`]).
@@ -117,6 +128,61 @@ impl GraphSlam {
         self.motion.take();
         self.aligned = true;
         true
+    }
+
+    /// Matches again what the scans near the start left unmatched before the
+    /// loop closed. Until then the gates leave the start area's landmarks to
+    /// place recognition ([`Self::awaits_loop_closure`]), which ties only
+    /// the scan it recognises: the detections of the scans before it stayed
+    /// unmatched (40–60 per run on the 90 m eufs_boa_constrictor). Now the
+    /// optimised poses place them, maximum likelihood matches them to the
+    /// landmarks their scan left free, and their sightings join the final
+    /// optimisation.
+    pub(super) fn match_near_start_scans(&mut self) {
+        let scans = std::mem::take(&mut self.near_start_scans);
+        let pose_cov = self.pose_cov;
+        for scan in &scans {
+            let pose = self.poses[scan.keyframe].pose;
+            let covs: Vec<Matrix2<f64>> = scan
+                .cones
+                .iter()
+                .map(|d| self.config.detection_cov(d))
+                .collect();
+            let (mut candidates, _) = self.candidates(&pose, &pose_cov, &scan.cones, &covs);
+            let slots = scan.first..scan.first + scan.cones.len();
+            let matched: Vec<Option<usize>> = self.detections[slots.clone()]
+                .iter()
+                .map(|d| {
+                    d.2.map(|l| self.resolve(l)).filter(|&l| {
+                        self.landmarks[l].sighting.confirmed && !self.landmarks[l].removed
+                    })
+                })
+                .collect();
+            for (i, pairs) in candidates.iter_mut().enumerate() {
+                if matched[i].is_some() {
+                    pairs.clear();
+                } else {
+                    pairs.retain(|p| !matched.contains(&Some(p.landmark)));
+                }
+            }
+            let assigned = associate(
+                AssociationMethod::MaximumLikelihood,
+                &candidates,
+                &vec![None; candidates.len()],
+                |pairs| chi2_99(2 * pairs),
+                &through_pose(&pose_cov),
+            );
+            for (i, l) in assigned.iter().enumerate() {
+                let Some(l) = *l else { continue };
+                self.detections[scan.first + i].2 = Some(l);
+                self.observations.push(Observation {
+                    pose: scan.keyframe,
+                    landmark: l,
+                    z: scan.cones[i].position,
+                    information: nearest_information2(&covs[i]),
+                });
+            }
+        }
     }
 
     /// Optimises every pose and confirmed landmark, merges duplicates, and

@@ -148,6 +148,8 @@ pub struct GraphSlam {
     calibration: Calibration,
     timing: Timing,
     window: window::Window,
+    /// Scans near the start before the loop closed, matched again once it has.
+    near_start_scans: Vec<loop_closure::PendingScan>,
 }
 
 impl GraphSlam {
@@ -173,6 +175,7 @@ impl GraphSlam {
             calibration: Calibration::default(),
             timing: Timing::default(),
             window: window::Window::default(),
+            near_start_scans: Vec::new(),
         }
     }
 
@@ -378,11 +381,19 @@ impl GraphSlam {
             .poses
             .first()
             .is_some_and(|p| near_start(&p.pose, &pose));
-        if near_start
-            && (returned >= self.config.loop_min_returned
-                || self.recognise_place(cones, &covs, keyframe))
+        if !near_start {
+            self.near_start_scans.clear();
+            return;
+        }
+        self.near_start_scans.push(loop_closure::PendingScan {
+            keyframe,
+            first: self.detections.len() - cones.len(),
+            cones: cones.to_vec(),
+        });
+        if returned >= self.config.loop_min_returned || self.recognise_place(cones, &covs, keyframe)
         {
             self.close_loop();
+            self.match_near_start_scans();
         }
     }
 
