@@ -134,12 +134,19 @@ pub fn run(a: ReportArgs) -> Result<(), String> {
          measured 25 ms but lost association (99.22%). This report runs two runs at once, and \
          latencies on this shared 2-core machine vary up to 3× between identical runs and \
          between days.\n\
-         - **Association** (99.6–99.8% on most tracks): the `standard` preset gates at χ² \
+         - **Association** (99.7–99.9% on most tracks): the `standard` preset gates at χ² \
          99.9% (13.8); at 99% about 1% of true detections fell outside the gate and stayed \
          unmatched (98.6% overall). With the `hard` preset's false positive per scan the wider \
          gate let in enough wrong matches to lose more laps (91.9% → 89.4%), so it keeps 99%. \
-         The small, dense EUFS tracks (boa_constrictor, peanut: 98.9–99.1%) see up to 39 cones \
-         at once, some closer together than the detector's noise at range.\n\
+         The small EUFS tracks put the start's big orange cones in pairs 0.28 m apart, closer \
+         than the detector's noise at 10 m: matched pair by pair (or by a tracker id that \
+         mixed them up) the two swap, so two detections exchange landmarks when that is more \
+         likely together, which a pose error shifting both cannot fake. The scans near the \
+         start before the loop closes are matched again from their optimised poses once it \
+         has (until then the gates leave the start area to place recognition). Together: \
+         99.36 → 99.52% overall, boa_constrictor 98.6 → 99.3%, peanut 99.0 → 99.6%. What is \
+         left on boa_constrictor is mostly those pairs at range, and cones next to the start \
+         seen too few times as the lap began to be confirmed, hence never mapped.\n\
          - **eufs_rand** has 134 clutter objects, seen 30% of the time as blue, yellow or unknown. \
          Landmarks whose colours are 400 : 1 clutter are dropped; about 30 per run are seen too \
          few times (3–6) to judge and stay as phantoms.\n\
