@@ -111,17 +111,18 @@ impl GraphSlam {
                     && self.landmarks[l].sighting.confirmed
             })
             .collect();
-        let mut close = Vec::new();
-        for (a_pos, &a) in live.iter().enumerate() {
-            for &b in &live[a_pos + 1..] {
-                let (la, lb) = (&self.landmarks[a], &self.landmarks[b]);
-                if (la.mean - lb.mean).norm() < MERGE_RADIUS
-                    && la.sighting.color().compatible(lb.sighting.color())
-                {
-                    close.push((a, b));
-                }
-            }
-        }
+        let points: Vec<(usize, Vector2<f64>)> =
+            live.iter().map(|&l| (l, self.landmarks[l].mean)).collect();
+        let close: Vec<(usize, usize)> = pairs_within(&points, MERGE_RADIUS)
+            .into_iter()
+            .filter(|&(a, b)| {
+                let (ca, cb) = (
+                    self.landmarks[a].sighting.color(),
+                    self.landmarks[b].sighting.color(),
+                );
+                ca.compatible(cb)
+            })
+            .collect();
         if close.is_empty() {
             return;
         }
@@ -172,6 +173,27 @@ impl GraphSlam {
             })
             .collect()
     }
+}
+
+/// The pairs `(a, b)`, a < b, of the labelled points closer than `radius`,
+/// sorted: a sweep along x instead of comparing every pair (a thousand
+/// landmarks on a long track).
+fn pairs_within(points: &[(usize, Vector2<f64>)], radius: f64) -> Vec<(usize, usize)> {
+    let mut by_x: Vec<&(usize, Vector2<f64>)> = points.iter().collect();
+    by_x.sort_unstable_by(|a, b| a.1.x.total_cmp(&b.1.x));
+    let mut pairs = Vec::new();
+    for (i, &&(a, pa)) in by_x.iter().enumerate() {
+        for &&(b, pb) in &by_x[i + 1..] {
+            if pb.x - pa.x >= radius {
+                break;
+            }
+            if (pa - pb).norm() < radius {
+                pairs.push((a.min(b), a.max(b)));
+            }
+        }
+    }
+    pairs.sort_unstable();
+    pairs
 }
 
 /// Landmarks of compatible colours closer than this after a loop closure are one cone (m).
@@ -406,6 +428,31 @@ mod tests {
     use super::*;
     use cairn_core::edge::numeric_binary;
     use rand::{Rng, SeedableRng, rngs::StdRng};
+
+    #[test]
+    fn the_sweep_finds_the_same_close_pairs_as_comparing_every_pair() {
+        let mut rng = StdRng::seed_from_u64(3);
+        for _ in 0..100 {
+            let n = rng.random_range(0..60);
+            // Labels out of order, points in a few metres, some on one x.
+            let points: Vec<(usize, Vector2<f64>)> = (0..n)
+                .map(|i| {
+                    let x = (rng.random_range(0.0..6.0) * 4.0_f64).round() / 4.0;
+                    ((i * 7) % 61, Vector2::new(x, rng.random_range(0.0..3.0)))
+                })
+                .collect();
+            let mut every = Vec::new();
+            for (i, &(a, pa)) in points.iter().enumerate() {
+                for &(b, pb) in &points[i + 1..] {
+                    if (pa - pb).norm() < MERGE_RADIUS {
+                        every.push((a.min(b), a.max(b)));
+                    }
+                }
+            }
+            every.sort_unstable();
+            assert_eq!(pairs_within(&points, MERGE_RADIUS), every);
+        }
+    }
 
     fn random_pose(rng: &mut StdRng) -> PoseBias {
         PoseBias {
