@@ -2,14 +2,18 @@
 //! with g2o's error definitions and analytic Jacobians.
 
 use crate::edge::{BinaryEdge, UnaryEdge};
-use crate::se2::SE2;
+use crate::se2::{SE2, normalize_angle};
 use crate::se3::{SE3, canonical, skew};
 use nalgebra::{Matrix2, Matrix3, Matrix6, SMatrix, Vector2, Vector3, Vector6};
 
-/// ∂Rᵀ(θ)/∂θ.
-fn d_rotation_transpose(theta: f64) -> Matrix2<f64> {
-    let (s, c) = theta.sin_cos();
+/// ∂Rᵀ(θ)/∂θ, from (sin θ, cos θ).
+fn d_rotation_transpose((s, c): (f64, f64)) -> Matrix2<f64> {
     Matrix2::new(-s, c, -c, -s)
+}
+
+/// R(θ)ᵀ, from (sin θ, cos θ).
+fn rotation_transpose((s, c): (f64, f64)) -> Matrix2<f64> {
+    Matrix2::new(c, s, -s, c)
 }
 
 /// Odometry or loop closure between two SE2 poses (g2o `EDGE_SE2`):
@@ -18,14 +22,21 @@ fn d_rotation_transpose(theta: f64) -> Matrix2<f64> {
 pub struct EdgeSE2 {
     measurement: SE2,
     inverse: SE2,
+    // Rotations of Z⁻¹ and Zᵀ, computed once: sines and cosines are most of
+    // an SE2 edge's linearisation.
+    inverse_rotation: Matrix2<f64>,
+    measurement_rotation_t: Matrix2<f64>,
 }
 
 impl EdgeSE2 {
     /// An edge measuring the pose of j in the frame of i.
     pub fn new(measurement: SE2) -> Self {
+        let inverse = measurement.inverse();
         Self {
             measurement,
-            inverse: measurement.inverse(),
+            inverse,
+            inverse_rotation: inverse.rotation(),
+            measurement_rotation_t: measurement.rotation().transpose(),
         }
     }
     /// The measured relative pose Z.
@@ -40,15 +51,18 @@ impl BinaryEdge<3, 3, 3> for EdgeSE2 {
     const NAME: &'static str = "EDGE_SE2";
 
     fn error(&self, xi: &SE2, xj: &SE2) -> Vector3<f64> {
-        self.inverse.compose(&xi.between(xj)).to_vector()
+        // Z⁻¹ · (Xᵢ⁻¹ · Xⱼ), with Z⁻¹'s rotation precomputed.
+        let d = xi.between(xj);
+        let t = self.inverse.t + self.inverse_rotation * d.t;
+        Vector3::new(t.x, t.y, normalize_angle(self.inverse.theta + d.theta))
     }
 
     fn jacobians(&self, xi: &SE2, xj: &SE2) -> (Matrix3<f64>, Matrix3<f64>) {
-        let rzt = self.measurement.rotation().transpose();
-        let rit = xi.rotation().transpose();
-        let a = rzt * rit;
+        let rzt = self.measurement_rotation_t;
+        let sc = xi.theta.sin_cos();
+        let a = rzt * rotation_transpose(sc);
         let dt = xj.t - xi.t;
-        let dth = rzt * d_rotation_transpose(xi.theta) * dt;
+        let dth = rzt * d_rotation_transpose(sc) * dt;
         let mut ji = Matrix3::zeros();
         ji.fixed_view_mut::<2, 2>(0, 0).copy_from(&(-a));
         ji.fixed_view_mut::<2, 1>(0, 2).copy_from(&dth);
@@ -95,11 +109,12 @@ impl BinaryEdge<2, 3, 2> for EdgeSE2XY {
     }
 
     fn jacobians(&self, x: &SE2, l: &Vector2<f64>) -> (SMatrix<f64, 2, 3>, Matrix2<f64>) {
-        let rt = x.rotation().transpose();
+        let sc = x.theta.sin_cos();
+        let rt = rotation_transpose(sc);
         let mut jx = SMatrix::<f64, 2, 3>::zeros();
         jx.fixed_view_mut::<2, 2>(0, 0).copy_from(&(-rt));
         jx.fixed_view_mut::<2, 1>(0, 2)
-            .copy_from(&(d_rotation_transpose(x.theta) * (l - x.t)));
+            .copy_from(&(d_rotation_transpose(sc) * (l - x.t)));
         (jx, rt)
     }
 
