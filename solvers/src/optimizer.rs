@@ -228,9 +228,7 @@ impl Optimizer {
         phases.linearize += since(t);
         let t = Instant::now();
         self.structure
-            .assemble_hessian(&self.buffer, &mut self.hessian);
-        self.structure
-            .assemble_gradient(&self.buffer, &mut self.gradient);
+            .assemble(&self.buffer, &mut self.hessian, &mut self.gradient);
         let chi2 = self.structure.chi2(&self.buffer);
         phases.assemble += since(t);
         chi2
