@@ -32,6 +32,11 @@ pub trait Estimator {
     fn finish(&mut self) -> Result<(), OptimiseError> {
         Ok(())
     }
+    /// Optimisations that failed during the run, the estimate kept (the
+    /// graph front end's loop closures); the filters have none.
+    fn warnings(&self) -> &[String] {
+        &[]
+    }
 }
 
 /// The estimators, by command-line name.
@@ -167,6 +172,9 @@ impl Estimator for GraphSlam {
     }
     fn finish(&mut self) -> Result<(), OptimiseError> {
         GraphSlam::finish(self)
+    }
+    fn warnings(&self) -> &[String] {
+        GraphSlam::warnings(self)
     }
     fn map(&self) -> Vec<Cone> {
         GraphSlam::map(self)

@@ -41,6 +41,9 @@ pub struct Report {
     pub loop_closure_ms: Option<f64>,
     /// The optimisation at the end of the run (ms).
     pub final_optimisation_ms: Option<f64>,
+    /// Optimisations that failed during the run, the estimate kept.
+    #[serde(skip_serializing_if = "Vec::is_empty")]
+    pub warnings: Vec<String>,
 }
 
 /// Scores a run.

@@ -361,6 +361,9 @@ impl Estimator for Clustered {
     fn finish(&mut self) -> Result<(), crate::frontend::OptimiseError> {
         self.inner.finish()
     }
+    fn warnings(&self) -> &[String] {
+        self.inner.warnings()
+    }
     fn map(&self) -> Vec<Cone> {
         self.inner.map()
     }

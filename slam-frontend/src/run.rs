@@ -2,7 +2,7 @@
 
 use crate::estimator::{Estimator, EstimatorBuilder};
 use crate::eval::{Report, evaluate, latency_ms};
-use crate::frontend::{FrontEndConfig, GraphSlam};
+use crate::frontend::{FrontEndConfig, GraphSlam, OptimiseError};
 use crate::sim::Simulation;
 
 /// Feeds a simulated log to a new graph front end and scores the result.
@@ -11,10 +11,8 @@ pub fn run_and_score(sim: &Simulation, config: FrontEndConfig) -> (GraphSlam, Re
     for record in &sim.log {
         slam.process(record);
     }
-    if let Err(e) = slam.finish() {
-        eprintln!("final optimisation failed: {e}");
-    }
-    let report = score(sim, &slam);
+    let finished = slam.finish();
+    let report = with_warnings(score(sim, &slam), &slam, finished);
     (slam, report)
 }
 
@@ -24,11 +22,24 @@ pub fn run_estimator(sim: &Simulation, builder: &EstimatorBuilder) -> (Box<dyn E
     for record in &sim.log {
         slam.process(record);
     }
-    if let Err(e) = slam.finish() {
-        eprintln!("final optimisation failed: {e}");
-    }
-    let report = score(sim, slam.as_ref());
+    let finished = slam.finish();
+    let report = with_warnings(score(sim, slam.as_ref()), slam.as_ref(), finished);
     (slam, report)
+}
+
+/// The report with the run's failed optimisations, the final one's included.
+fn with_warnings(
+    mut report: Report,
+    slam: &dyn Estimator,
+    finished: Result<(), OptimiseError>,
+) -> Report {
+    report.warnings = slam.warnings().to_vec();
+    if let Err(e) = finished {
+        report.warnings.push(format!(
+            "the final optimisation failed ({e}); kept the estimate"
+        ));
+    }
+    report
 }
 
 /// Scores an estimator's current output against the simulation's truth.
@@ -51,4 +62,24 @@ pub fn score(sim: &Simulation, slam: &dyn Estimator) -> Report {
         .map(|s| s * 1e3);
     report.final_optimisation_ms = slam.timing().final_optimisation.map(|s| s * 1e3);
     report
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::frontend::FrontEndConfig;
+
+    /// A failed final optimisation reaches the report instead of stderr.
+    #[test]
+    fn a_failed_final_optimisation_is_reported() {
+        let slam = GraphSlam::new(FrontEndConfig::default());
+        let failed = Err(OptimiseError::Solve(
+            cairn_solvers::SolveError::GraphChanged,
+        ));
+        let report = with_warnings(Report::default(), &slam, failed);
+        assert_eq!(report.warnings.len(), 1);
+        assert!(report.warnings[0].contains("final optimisation failed"));
+        let report = with_warnings(Report::default(), &slam, Ok(()));
+        assert!(report.warnings.is_empty());
+    }
 }

@@ -316,6 +316,9 @@ pub fn run_slam(a: SlamArgs) -> Result<(), String> {
     if let Err(e) = slam.finish() {
         eprintln!("warning: the final optimisation failed ({e}); writing the estimate as it was");
     }
+    for warning in slam.warnings() {
+        eprintln!("warning: {warning}");
+    }
     // Everything is computed before anything is written, so a failure leaves no partial output.
     let map = map_to_csv(&slam.map());
     let traj = files::trajectory_to_tum(&slam.trajectory());

@@ -73,6 +73,9 @@ pub fn run(a: ReportArgs) -> Result<(), String> {
                 &sim,
                 front_end_config(preset, *method, EstimatorKind::Graph),
             );
+            for warning in &report.warnings {
+                eprintln!("warning: {} seed {seed}: {warning}", tracks[*t].0.name);
+            }
             Run {
                 track: *t,
                 preset: preset.name,

@@ -115,6 +115,9 @@ pub fn run(a: StudyArgs) -> Result<(), String> {
             builder.particles = a.particles;
             builder.seed = *seed;
             let (slam, report) = run_estimator(&sim, &builder);
+            for warning in &report.warnings {
+                eprintln!("warning: {} seed {seed}: {warning}", tracks[*t].0.name);
+            }
             let n = done.fetch_add(1, Ordering::Relaxed) + 1;
             if n.is_multiple_of(20) {
                 eprintln!("  {n}/{} runs", jobs.len());

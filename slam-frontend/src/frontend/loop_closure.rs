@@ -191,7 +191,10 @@ impl GraphSlam {
         let start = Instant::now();
         self.loop_closures += 1;
         if let Err(e) = self.optimise(super::optimise::Batch::loop_closure()) {
-            eprintln!("loop closure optimisation failed: {e}");
+            self.warnings.push(format!(
+                "loop closure {}: the optimisation failed ({e}); kept the estimate",
+                self.loop_closures
+            ));
         }
         self.timing
             .loop_closures

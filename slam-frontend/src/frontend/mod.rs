@@ -150,6 +150,7 @@ pub struct GraphSlam {
     window: window::Window,
     /// Scans near the start before the loop closed, matched again once it has.
     near_start_scans: Vec<loop_closure::PendingScan>,
+    warnings: Vec<String>,
 }
 
 impl GraphSlam {
@@ -176,6 +177,7 @@ impl GraphSlam {
             timing: Timing::default(),
             window: window::Window::default(),
             near_start_scans: Vec::new(),
+            warnings: Vec::new(),
         }
     }
 
@@ -212,6 +214,12 @@ impl GraphSlam {
     /// Update and optimisation times.
     pub fn timing(&self) -> &Timing {
         &self.timing
+    }
+
+    /// Loop-closure optimisations that failed; the run went on with the
+    /// estimate as it was before each.
+    pub fn warnings(&self) -> &[String] {
+        &self.warnings
     }
 
     /// The odometry corrections learnt so far.
