@@ -3,7 +3,7 @@
 //! that follows, and placing the car on a given map.
 
 use super::association::{AssociationMethod, associate, through_pose};
-use super::{GraphSlam, Mode, Observation, align, chi2_99, nearest_information2};
+use super::{GraphSlam, Mode, Observation, align, chi2_99, nearest_information};
 use crate::color::Color;
 use crate::log::Detection;
 use crate::sighting::View;
@@ -104,7 +104,7 @@ impl GraphSlam {
                     pose: keyframe,
                     landmark: l,
                     z: d.position,
-                    information: nearest_information2(&covs[i]),
+                    information: nearest_information(&covs[i]),
                 });
                 self.detections[first + i].2 = Some(l);
                 self.landmarks[l].sighting.view = View::Returned;
@@ -179,7 +179,7 @@ impl GraphSlam {
                     pose: scan.keyframe,
                     landmark: l,
                     z: scan.cones[i].position,
-                    information: nearest_information2(&covs[i]),
+                    information: nearest_information(&covs[i]),
                 });
             }
         }

@@ -7,12 +7,14 @@ pub(crate) mod align;
 pub mod association;
 mod calibration;
 mod config;
+mod edges;
 mod landmarks;
 mod loop_closure;
 mod optimise;
 mod window;
 pub use calibration::Calibration;
 pub use config::FrontEndConfig;
+use edges::{OdometryEdge, nearest_information, odometry_information};
 pub(crate) use optimise::MERGE_RADIUS;
 
 use crate::files::{Association, StampedPose};
@@ -52,53 +54,6 @@ struct Observation {
     landmark: usize,
     z: Vector2<f64>,
     information: Matrix2<f64>,
-}
-
-/// The odometry between consecutive keyframes.
-#[derive(Clone, Copy, Debug)]
-struct OdometryEdge {
-    /// Motion integrated from the odometry, with the calibration of the time.
-    delta: SE2,
-    /// Its information, bias included (for the smoother).
-    information: Matrix3<f64>,
-    /// Time between the keyframes (s).
-    dt: f64,
-    /// The yaw-rate bias the integration took out (rad/s).
-    yaw_rate_bias: f64,
-    /// Variance of the integrated heading from the yaw rate's white noise
-    /// alone (rad²).
-    heading_variance: f64,
-}
-
-impl OdometryEdge {
-    /// The odometry across consecutive edges, as one edge. The bias taken
-    /// out is their time-weighted mean, so the turn corrected for a bias
-    /// b is the same, Σ (Δθᵢ + (usedᵢ − b)·dtᵢ).
-    fn chain(edges: &[OdometryEdge]) -> OdometryEdge {
-        if let [edge] = edges {
-            return *edge;
-        }
-        let (mut delta, mut cov) = (SE2::identity(), Matrix3::zeros());
-        let (mut dt, mut bias_time, mut heading_variance) = (0.0, 0.0, 0.0);
-        for e in edges {
-            let e_cov = e.information.try_inverse().unwrap_or_else(Matrix3::zeros);
-            (delta, cov) = compose_with_cov(&delta, &cov, &e.delta, &e_cov);
-            dt += e.dt;
-            bias_time += e.yaw_rate_bias * e.dt;
-            heading_variance += e.heading_variance;
-        }
-        OdometryEdge {
-            delta,
-            information: nearest_information(&cov),
-            dt,
-            yaw_rate_bias: if dt > 0.0 {
-                bias_time / dt
-            } else {
-                edges.first().map_or(0.0, |e| e.yaw_rate_bias)
-            },
-            heading_variance,
-        }
-    }
 }
 
 /// Why a full optimisation failed.
@@ -365,7 +320,7 @@ impl GraphSlam {
                     pose: keyframe,
                     landmark: l,
                     z: d.position,
-                    information: nearest_information2(&covs[i]),
+                    information: nearest_information(&covs[i]),
                 });
             }
             if self.mode == Mode::Mapping {
@@ -513,7 +468,7 @@ impl GraphSlam {
                 j.fixed_view_mut::<2, 2>(0, 0).copy_from(&(-rt));
                 j.fixed_view_mut::<2, 1>(0, 2).copy_from(&(drt * diff));
                 let s = rt * lm.cov * rt.transpose() + covs[i];
-                let w = nearest_information2(&s);
+                let w = nearest_information(&s);
                 h += j.transpose() * w * j;
                 g += j.transpose() * w * e;
             }
@@ -581,34 +536,4 @@ pub fn chi2_99(dof: usize) -> f64 {
     let z = 2.326_347_874;
     let a = 2.0 / (9.0 * k);
     k * (1.0 - a + z * a.sqrt()).powi(3)
-}
-
-/// Least position σ of an odometry edge (m). The integrated covariance
-/// has next to no lateral term (the model cannot slide sideways), and
-/// edges that claim the lateral motion to a few µm bend the path in the
-/// smoother; 1 mm keeps them honest. (Floors growing with the distance
-/// driven, 0.5–2 cm per metre, measured worse: the lateral constraint is
-/// what carries the heading from scan to scan.)
-const ODOMETRY_FLOOR: f64 = 1e-3;
-
-/// Information of an odometry edge: the integrated covariance with [`ODOMETRY_FLOOR`].
-fn odometry_information(cov: &Matrix3<f64>) -> Matrix3<f64> {
-    let floor = ODOMETRY_FLOOR * ODOMETRY_FLOOR;
-    nearest_information(&(cov + Matrix3::from_diagonal(&nalgebra::Vector3::new(floor, floor, 0.0))))
-}
-
-fn nearest_information(cov: &Matrix3<f64>) -> Matrix3<f64> {
-    let reg = cov + Matrix3::identity() * 1e-9;
-    let inv = reg
-        .try_inverse()
-        .unwrap_or_else(|| Matrix3::identity() * 1e9);
-    0.5 * (inv + inv.transpose())
-}
-
-fn nearest_information2(cov: &Matrix2<f64>) -> Matrix2<f64> {
-    let reg = cov + Matrix2::identity() * 1e-9;
-    let inv = reg
-        .try_inverse()
-        .unwrap_or_else(|| Matrix2::identity() * 1e9);
-    0.5 * (inv + inv.transpose())
 }
