@@ -7,6 +7,7 @@ mod fs_report;
 mod generate;
 mod solve;
 mod study;
+mod study_sweeps;
 
 use clap::{Parser, Subcommand};
 
