@@ -189,6 +189,18 @@ enum Source {
     FalsePositive,
 }
 
+/// Zero-mean Gaussian noise of standard deviation `sigma`, clamped to
+/// [1e-300, f64::MAX]: a noise-free sensor (σ = 0) or a configuration error
+/// (negative, NaN or infinite σ) never makes drawing noise fail.
+fn gaussian(sigma: f64) -> Normal<f64> {
+    let sigma = if sigma.is_nan() {
+        1e-300
+    } else {
+        sigma.clamp(1e-300, f64::MAX)
+    };
+    Normal::new(0.0, sigma).unwrap_or_else(|_| unreachable!("σ = {sigma} is finite"))
+}
+
 /// Simulates `config.laps` laps of `track` along `course`.
 pub fn simulate(track: &Track, course: &Course, config: &SimConfig) -> Simulation {
     let mut rng = StdRng::seed_from_u64(config.seed);
@@ -200,7 +212,6 @@ pub fn simulate(track: &Track, course: &Course, config: &SimConfig) -> Simulatio
     } else {
         course.length()
     };
-    let normal = |s: f64| Normal::new(0.0, s.max(1e-300)).expect("finite σ");
 
     let mut pose = track.start;
     let mut s = course.project(&pose.t, None, 0.0);
@@ -228,9 +239,9 @@ pub fn simulate(track: &Track, course: &Course, config: &SimConfig) -> Simulatio
         truth.push(StampedPose { t, pose });
         log.push(Record::Odom {
             t,
-            v: v * (1.0 + odo.speed_scale_bias) + normal(odo.speed_sigma).sample(&mut rng),
-            yaw_rate: yaw_rate + odo.yaw_rate_bias + normal(odo.yaw_rate_sigma).sample(&mut rng),
-            steer: Some(steer + normal(odo.steer_sigma).sample(&mut rng)),
+            v: v * (1.0 + odo.speed_scale_bias) + gaussian(odo.speed_sigma).sample(&mut rng),
+            yaw_rate: yaw_rate + odo.yaw_rate_bias + gaussian(odo.yaw_rate_sigma).sample(&mut rng),
+            steer: Some(steer + gaussian(odo.steer_sigma).sample(&mut rng)),
             vy: None,
         });
         if step.is_multiple_of(scan_every) {
@@ -318,7 +329,7 @@ fn detect(
     rng: &mut StdRng,
 ) -> (Vec<Detection>, Vec<Source>) {
     let inverse = pose.inverse();
-    let bearing_noise = Normal::new(0.0, sensor.bearing_sigma.max(1e-300)).expect("finite σ");
+    let bearing_noise = gaussian(sensor.bearing_sigma);
     let mut found: Vec<(Source, Vector2<f64>, Color)> = Vec::new();
     let objects = track
         .cones
@@ -387,8 +398,7 @@ fn detect(
     let mut sources = Vec::with_capacity(found.len());
     for ((source, local, color), id) in found.into_iter().zip(ids) {
         let r = local.norm();
-        let range_noise = Normal::new(0.0, sensor.range_sigma + sensor.range_sigma_relative * r)
-            .expect("finite σ");
+        let range_noise = gaussian(sensor.range_sigma + sensor.range_sigma_relative * r);
         let r = (r + range_noise.sample(rng)).max(0.0);
         let b = local.y.atan2(local.x) + bearing_noise.sample(rng);
         let u: f64 = rng.random();
@@ -434,7 +444,7 @@ pub fn point_clouds(
     seed: u64,
 ) -> Simulation {
     let mut rng = StdRng::seed_from_u64(seed);
-    let noise = Normal::new(0.0, 0.01).expect("finite σ");
+    let noise = gaussian(0.01);
     let truth_at: HashMap<u64, SE2> = sim.truth.iter().map(|p| (p.t.to_bits(), p.pose)).collect();
     let mut sources = sim.truth_associations.iter().peekable();
     let mut log = Vec::with_capacity(sim.log.len());
@@ -557,4 +567,19 @@ fn cone_surface(
         h += ring_step;
     }
     out
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn noise_of_any_sigma_can_be_drawn() {
+        let mut rng = StdRng::seed_from_u64(1);
+        for sigma in [0.0, -1.0, f64::NAN, f64::INFINITY, 1e-320, 0.05] {
+            let x = gaussian(sigma).sample(&mut rng);
+            assert!(!x.is_nan(), "σ {sigma}: {x}");
+        }
+        assert!(gaussian(0.0).sample(&mut rng).abs() < 1e-290);
+    }
 }
