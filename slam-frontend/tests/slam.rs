@@ -1,12 +1,14 @@
 //! The simulator, data association, evaluation and the whole pipeline.
 
+use cairn_slam::course::Course;
 use cairn_slam::eval::{aligned_rms, association_accuracy, rigid_alignment};
 use cairn_slam::files::Association;
 use cairn_slam::frontend::association::AssociationMethod;
 use cairn_slam::frontend::{FrontEndConfig, GraphSlam, Mode};
 use cairn_slam::log::Record;
 use cairn_slam::run::run_and_score;
-use cairn_slam::sim::{Preset, SimConfig, simulate};
+use cairn_slam::sim::{Preset, SimConfig, Simulation, simulate};
+use cairn_slam::track::Track;
 use cairn_slam::trackgen::{TrackRules, random_track};
 use nalgebra::{Rotation2, Vector2};
 
@@ -101,16 +103,21 @@ fn association_accuracy_counts_landmarks_by_majority() {
     assert!((acc - 0.8).abs() < 1e-12);
 }
 
-fn score(method: AssociationMethod, seed: u64) -> (GraphSlam, cairn_slam::eval::Report) {
-    let (track, course) = random_track(1, &TrackRules::default());
-    let sim = simulate(
-        &track,
-        &course,
+/// A run of the default simulation (two laps, `standard`) with noise `seed`.
+fn simulate_seed(track: &Track, course: &Course, seed: u64) -> Simulation {
+    simulate(
+        track,
+        course,
         &SimConfig {
             seed,
             ..SimConfig::default()
         },
-    );
+    )
+}
+
+fn score(method: AssociationMethod, seed: u64) -> (GraphSlam, cairn_slam::eval::Report) {
+    let (track, course) = random_track(1, &TrackRules::default());
+    let sim = simulate_seed(&track, &course, seed);
     let config = FrontEndConfig {
         association: method,
         ..FrontEndConfig::default()
@@ -204,14 +211,7 @@ fn the_final_optimisation_refines_the_map_with_the_laps_on_the_fixed_map() {
     let (track, course) = random_track(0, &TrackRules::default());
     let (mut before, mut after) = (0.0, 0.0);
     for seed in 1..=8 {
-        let sim = simulate(
-            &track,
-            &course,
-            &SimConfig {
-                seed,
-                ..SimConfig::default()
-            },
-        );
+        let sim = simulate_seed(&track, &course, seed);
         let mut slam = GraphSlam::new(FrontEndConfig::default());
         for r in &sim.log {
             slam.process(r);
@@ -253,14 +253,7 @@ fn detections_near_the_start_before_the_loop_closes_are_matched_after_it() {
     let (track, course) = random_track(2, &TrackRules::default());
     let mut total = 0.0;
     for seed in 1..=3 {
-        let sim = simulate(
-            &track,
-            &course,
-            &SimConfig {
-                seed,
-                ..SimConfig::default()
-            },
-        );
+        let sim = simulate_seed(&track, &course, seed);
         let mut slam = GraphSlam::new(FrontEndConfig::default());
         let (mut scan, mut closed_at) = (0, None);
         for r in &sim.log {
