@@ -19,6 +19,9 @@ pub struct Course {
 /// Spacing of the resampled centre line (m).
 const STEP: f64 = 0.25;
 
+/// Most points a resampled course may have (1,000 km every 10 cm).
+const MAX_RESAMPLED: usize = 10_000_000;
+
 impl Course {
     /// A course through `points`; a closed one joins the last point to the first.
     pub fn new(points: Vec<Vector2<f64>>, closed: bool) -> Result<Course, String> {
@@ -78,7 +81,7 @@ impl Course {
                 if blue.len() < 3 || yellow.len() < 3 {
                     return Err("a loop track needs blue and yellow boundaries".into());
                 }
-                let blue = Course::new(blue, true)?.resampled(0.5);
+                let blue = Course::new(blue, true)?.resampled(0.5)?;
                 let yellow = Course::new(yellow, true)?;
                 let mids: Vec<_> = blue
                     .points
@@ -86,7 +89,7 @@ impl Course {
                     .map(|b| 0.5 * (b + yellow.nearest_point(b)))
                     .collect();
                 let smooth = smooth_closed(&mids, 1);
-                let course = Course::new(smooth, true)?.resampled(STEP);
+                let course = Course::new(smooth, true)?.resampled(STEP)?;
                 let cones: Vec<_> = track.cones.iter().map(|c| c.position).collect();
                 let clearance = course.clearance(&cones);
                 if clearance < 0.7 {
@@ -188,14 +191,22 @@ impl Course {
         self.point_at(self.project(p, None, 0.0))
     }
 
-    /// The same course resampled at about `step` metres.
-    pub fn resampled(&self, step: f64) -> Course {
-        let n = (self.length / step).round().max(2.0) as usize;
+    /// The same course resampled at about `step` metres; an error if that
+    /// is no finite number of points (a course of infinite length, say).
+    pub fn resampled(&self, step: f64) -> Result<Course, String> {
+        let n = (self.length / step).round().max(2.0);
+        if !n.is_finite() || n > MAX_RESAMPLED as f64 {
+            return Err(format!(
+                "cannot resample a {} m course every {step} m",
+                self.length
+            ));
+        }
+        let n = n as usize;
         let count = if self.closed { n } else { n + 1 };
         let points = (0..count)
             .map(|k| self.point_at(self.length * k as f64 / n as f64))
             .collect();
-        Course::new(points, self.closed).expect("at least two points")
+        Course::new(points, self.closed)
     }
 
     /// The smallest distance from the course to any of `points` (cone clearance).
@@ -262,4 +273,23 @@ fn smooth_closed(points: &[Vector2<f64>], half_window: usize) -> Vec<Vector2<f64
             sum / (2 * half_window + 1) as f64
         })
         .collect()
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn resampling_keeps_the_length_and_refuses_an_endless_course() {
+        let square: Vec<Vector2<f64>> = [(0.0, 0.0), (10.0, 0.0), (10.0, 10.0), (0.0, 10.0)]
+            .iter()
+            .map(|&(x, y)| Vector2::new(x, y))
+            .collect();
+        let course = Course::new(square, true).unwrap();
+        let fine = course.resampled(0.5).unwrap();
+        assert!((fine.length() - 40.0).abs() < 1e-9, "{}", fine.length());
+        let huge = vec![Vector2::new(-1e308, 0.0), Vector2::new(1e308, 0.0)];
+        let endless = Course::new(huge, false).unwrap();
+        assert!(endless.resampled(0.5).is_err());
+    }
 }

@@ -81,7 +81,7 @@ fn attempt(rng: &mut StdRng, seed: u64, rules: &TrackRules) -> Option<(Track, Co
         .iter()
         .map(|p| to_start.transform_point(&(p * scale)))
         .collect();
-    let course = Course::new(centre, true).ok()?.resampled(0.25);
+    let course = Course::new(centre, true).ok()?.resampled(0.25).ok()?;
     let pts = course.points();
     let m = pts.len();
     // Curvature radius from three points 2 m apart; necks narrower than the track.
