@@ -34,6 +34,7 @@ import time
 HERE = os.path.dirname(os.path.abspath(__file__))
 ROOT = os.path.dirname(HERE)
 PEERS_ALL = ["gtsam", "g2o", "apex", "tiny", "factrs"]
+ALGOS_ALL = ["gn", "lm", "dogleg"]
 
 
 def peer_command(peers_dir, lib, algo, path):
@@ -281,14 +282,15 @@ def main():
         env[k] = str(a.threads)
 
     os.makedirs(os.path.dirname(a.jsonl), exist_ok=True)
-    # Runs kept from an earlier --jsonl: all of them (--render), or those of
-    # the files not rerun now (--replace).
+    # Runs kept from an earlier --jsonl: all of them (--render), or all but
+    # the (file, algorithm) pairs rerun now (--replace).
     kept = []
     if a.render or a.replace:
         kept = [json.loads(line) for line in open(a.jsonl)]
-        kept = [r for r in kept if a.render or r["file"] not in files]
+        kept = [r for r in kept if a.render or r["file"] not in files or r["algo"] not in algos]
+        peers = [p for p in PEERS_ALL
+                 if (p in peers and not a.render) or any(r["lib"] == p for r in kept)]
     if a.render:
-        peers = [p for p in PEERS_ALL if any(r["lib"] == p for r in kept)]
         files = []
     rows = list(kept)
     with open(a.jsonl + ".tmp", "w") as log:
@@ -314,6 +316,7 @@ def main():
     os.replace(a.jsonl + ".tmp", a.jsonl)
     files = sorted({r["file"] for r in rows}, key=lambda f: os.path.getsize(os.path.join(data, f)))
     table = summarise(rows)
+    algos = [x for x in ALGOS_ALL if any(r["algo"] == x for r in rows)]
     suite = render(table, files, algos, peers)
     process = render_process(table, files)
     phases = render_phases(rows, files)

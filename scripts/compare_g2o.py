@@ -36,7 +36,10 @@ def main():
         name = os.path.basename(path)
         cells = [name]
         for algo in ("gn", "lm"):
-            cmd = [args.cairn, "solve", path, "--solver", algo, "--json", "-q"]
+            # From the file's vertices, as g2o; LM with g2o's damping and τ.
+            cmd = [args.cairn, "solve", path, "--solver", algo, "--init", "file", "--json", "-q"]
+            if algo == "lm":
+                cmd += ["--damping", "levenberg"]
             if name == "cubicle.g2o":
                 cmd.append("--repair-information")
             p = subprocess.run(cmd, capture_output=True, text=True)

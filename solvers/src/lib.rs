@@ -35,8 +35,8 @@ pub mod structure;
 
 pub use chordal::{ChordalReport, ChordalWeights, chordal_initialize, chordal_initialize_with};
 pub use config::{
-    Algorithm, DoglegConfig, IterationStats, LevenbergMarquardtConfig, PhaseTimes, SolverConfig,
-    Summary, Termination,
+    Algorithm, Damping, DoglegConfig, IterationStats, LevenbergMarquardtConfig, PhaseTimes,
+    SolverConfig, Summary, Termination,
 };
 pub use initialization::{Initialization, optimize_from, spanning_tree_initialize};
 pub use linear::{

@@ -1,7 +1,9 @@
 //! Gauss-Newton and Levenberg-Marquardt over the fixed Hessian structure.
 
 use crate::SolveError;
-use crate::config::{Algorithm, IterationStats, PhaseTimes, SolverConfig, Summary, Termination};
+use crate::config::{
+    Algorithm, Damping, IterationStats, PhaseTimes, SolverConfig, Summary, Termination,
+};
 use crate::linear::SparseCholesky;
 use crate::structure::HessianStructure;
 use cairn_core::{Graph, VertexId};
@@ -50,6 +52,7 @@ pub struct Optimizer {
     buffer: Vec<f64>,
     hessian: Vec<f64>,
     diagonal_backup: Vec<f64>,
+    damping: Vec<f64>,
     gradient: Vec<f64>,
     step: Vec<f64>,
     backup: Vec<f64>,
@@ -89,6 +92,7 @@ impl Optimizer {
             buffer: vec![0.0; structure.buffer_len],
             hessian: vec![0.0; structure.nnz()],
             diagonal_backup: vec![0.0; structure.diagonal.len()],
+            damping: vec![0.0; structure.dim],
             gradient: vec![0.0; structure.dim],
             step: vec![0.0; structure.dim],
             backup: graph.values().params().to_vec(),
@@ -212,6 +216,14 @@ impl Optimizer {
 
     /// Linearises every edge and assembles H and the gradient; returns χ².
     fn linearize(&mut self, graph: &Graph, phases: &mut PhaseTimes) -> f64 {
+        let chi2 = self.linearize_edges(graph, phases);
+        self.assemble(phases);
+        chi2
+    }
+
+    /// Linearises every edge into the buffer, leaving H and the gradient as
+    /// they were; returns χ².
+    fn linearize_edges(&mut self, graph: &Graph, phases: &mut PhaseTimes) -> f64 {
         let t = Instant::now();
         let values = graph.values();
         let groups = graph.factor_groups();
@@ -225,16 +237,21 @@ impl Optimizer {
                 .unwrap_or(self.structure.buffer_len);
             group.linearize(values, &mut self.buffer[start..end]);
         }
-        phases.linearize += since(t);
-        let t = Instant::now();
-        self.structure
-            .assemble(&self.buffer, &mut self.hessian, &mut self.gradient);
         let chi2 = self.structure.chi2(&self.buffer);
-        phases.assemble += since(t);
+        phases.linearize += since(t);
         chi2
     }
 
-    /// Factorises H + λI (λ = 0 for GN) and solves for the step −(H + λI)⁻¹g.
+    /// Sums the buffer's blocks into H and the gradient.
+    fn assemble(&mut self, phases: &mut PhaseTimes) {
+        let t = Instant::now();
+        self.structure
+            .assemble(&self.buffer, &mut self.hessian, &mut self.gradient);
+        phases.assemble += since(t);
+    }
+
+    /// Factorises H + λD (λ = 0 for GN; D is `self.damping`) and solves for
+    /// the step −(H + λD)⁻¹g.
     fn compute_step(&mut self, lambda: f64, phases: &mut PhaseTimes) -> bool {
         let Some(cholesky) = self.cholesky.as_mut() else {
             return false;
@@ -243,7 +260,7 @@ impl Optimizer {
         if lambda != 0.0 {
             for (k, &d) in self.structure.diagonal.iter().enumerate() {
                 self.diagonal_backup[k] = self.hessian[d];
-                self.hessian[d] += lambda;
+                self.hessian[d] += lambda * self.damping[k];
             }
         }
         let ok = cholesky
@@ -265,6 +282,19 @@ impl Optimizer {
         cholesky.solve_in_place(&mut self.step);
         phases.solve += since(t);
         self.step.iter().all(|s| s.is_finite())
+    }
+
+    /// LM's damping D at the current H: 1 (Levenberg), or the diagonal of H
+    /// kept within [1e-6, 1e32] (Marquardt, as Ceres).
+    fn set_damping(&mut self) {
+        match self.config.lm.damping {
+            Damping::Levenberg => self.damping.fill(1.0),
+            Damping::Marquardt => {
+                for (d, &k) in self.damping.iter_mut().zip(&self.structure.diagonal) {
+                    *d = self.hessian[k].clamp(1e-6, 1e32);
+                }
+            }
+        }
     }
 
     fn apply_step(&self, graph: &mut Graph) {
@@ -360,7 +390,10 @@ impl Optimizer {
             .diagonal
             .iter()
             .fold(0.0f64, |m, &d| m.max(self.hessian[d].abs()));
-        let mut lambda = self.config.lm.tau * max_diagonal.max(f64::MIN_POSITIVE);
+        let mut lambda = match self.config.lm.damping {
+            Damping::Marquardt => self.config.lm.tau,
+            Damping::Levenberg => self.config.lm.tau * max_diagonal.max(f64::MIN_POSITIVE),
+        };
         let mut ni = 2.0;
         for iteration in 0..self.config.max_iterations {
             let began = Instant::now();
@@ -369,6 +402,7 @@ impl Optimizer {
             if gradient_max < self.config.gradient_tolerance || chi2 == 0.0 {
                 return Termination::GradientNorm;
             }
+            self.set_damping();
             self.save(graph);
             let mut trials = 0;
             let new_chi2 = loop {
@@ -379,16 +413,16 @@ impl Optimizer {
                     let t = Instant::now();
                     self.apply_step(graph);
                     phases.update += since(t);
-                    let t = Instant::now();
-                    trial_chi2 = graph.chi2();
-                    phases.chi2 += since(t);
+                    // Linearised at once: if the step is accepted, H and the
+                    // gradient are assembled from these blocks; if not, H and
+                    // the gradient still hold the last accepted point's.
+                    trial_chi2 = self.linearize_edges(graph, &mut phases);
                 }
-                // Predicted decrease of the damped linear model, as in g2o.
-                let predicted: f64 = self
-                    .step
-                    .iter()
-                    .zip(&self.gradient)
-                    .map(|(s, g)| s * (lambda * s - g))
+                // Decrease of χ² the damped linear model predicts, sᵀ(λDs − g),
+                // with g2o's 1e-3 guard against a zero prediction.
+                let predicted: f64 = (self.step.iter().zip(&self.gradient))
+                    .zip(&self.damping)
+                    .map(|((s, g), d)| s * (lambda * d * s - g))
                     .sum::<f64>()
                     + 1e-3;
                 let rho = (chi2 - trial_chi2) / predicted;
@@ -433,7 +467,7 @@ impl Optimizer {
             let converged = (0.0..self.config.relative_decrease).contains(&decrease);
             let last = small_step || converged || iteration + 1 == self.config.max_iterations;
             if !last {
-                self.linearize(graph, &mut phases);
+                self.assemble(&mut phases);
             }
             let stats = IterationStats {
                 iteration,

@@ -3,8 +3,8 @@
 use cairn::core::RobustKernel;
 use cairn::g2o::{LoadReport, ReadOptions};
 use cairn::solvers::{
-    Algorithm, Factorization, Initialization, IterationStats, LinearSolverConfig, Optimizer,
-    Ordering, SolverConfig, Summary, optimize_from,
+    Algorithm, Factorization, Initialization, IterationStats, LevenbergMarquardtConfig,
+    LinearSolverConfig, Optimizer, Ordering, SolverConfig, Summary, optimize_from,
 };
 use clap::{Args, ValueEnum};
 use std::fmt::Write as _;
@@ -19,6 +19,15 @@ enum SolverName {
     Lm,
     /// Powell's dogleg.
     Dogleg,
+}
+
+#[derive(Clone, Copy, Debug, PartialEq, Eq, ValueEnum)]
+enum DampingName {
+    /// H + λ·diag(H), first λ = τ (Marquardt's scaling, as Ceres).
+    Marquardt,
+    /// H + λI, first λ = τ·max(diag H), as g2o (with the default τ, g2o's
+    /// iterates exactly). Better where H is singular.
+    Levenberg,
 }
 
 #[derive(Clone, Copy, Debug, PartialEq, Eq, ValueEnum)]
@@ -71,6 +80,13 @@ pub struct SolveArgs {
     /// Algorithm (g2o's default is Gauss-Newton too).
     #[arg(long, value_enum, default_value = "gn")]
     solver: SolverName,
+    /// Levenberg-Marquardt's damping.
+    #[arg(long, value_enum, default_value = "marquardt")]
+    damping: DampingName,
+    /// Levenberg-Marquardt's τ, which sets the first λ (see --damping).
+    /// Default 1e-9 (marquardt), 1e-5 (levenberg, g2o's).
+    #[arg(long)]
+    tau: Option<f64>,
     /// Starting point.
     #[arg(long, value_enum, default_value = "auto")]
     init: InitName,
@@ -291,6 +307,14 @@ pub fn run(a: SolveArgs) -> Result<(), String> {
         eprintln!("{}", describe_load(&name, &report, vertices, edges));
     }
 
+    let lm = match a.damping {
+        DampingName::Marquardt => LevenbergMarquardtConfig::default(),
+        DampingName::Levenberg => LevenbergMarquardtConfig::g2o(),
+    };
+    let tau = a.tau.unwrap_or(lm.tau);
+    if !(tau > 0.0 && tau.is_finite()) {
+        return Err("--tau must be positive and finite".into());
+    }
     let config = SolverConfig {
         algorithm: match a.solver {
             SolverName::Gn => Algorithm::GaussNewton,
@@ -299,6 +323,7 @@ pub fn run(a: SolveArgs) -> Result<(), String> {
         },
         max_iterations: a.iterations,
         relative_decrease: a.relative_decrease,
+        lm: LevenbergMarquardtConfig { tau, ..lm },
         linear: LinearSolverConfig {
             factorization: match a.factorization {
                 FactorizationName::Auto => Factorization::Auto,

@@ -157,6 +157,7 @@ impl Optimizer {
             .diagonal
             .iter()
             .fold(0.0f64, |m, &d| m.max(self.hessian[d].abs()));
+        self.damping.fill(1.0);
         let mut damping = 0.0;
         for _ in 0..12 {
             if self.compute_step(damping, phases) {
