@@ -288,8 +288,9 @@ def main():
     if a.render or a.replace:
         kept = [json.loads(line) for line in open(a.jsonl)]
         kept = [r for r in kept if a.render or r["file"] not in files or r["algo"] not in algos]
-        peers = [p for p in PEERS_ALL
-                 if (p in peers and not a.render) or any(r["lib"] == p for r in kept)]
+    # The peers run now, and the peers in the tables (those run now or kept).
+    shown = [p for p in PEERS_ALL
+             if (p in peers and not a.render) or any(r["lib"] == p for r in kept)]
     if a.render:
         files = []
     rows = list(kept)
@@ -317,7 +318,7 @@ def main():
     files = sorted({r["file"] for r in rows}, key=lambda f: os.path.getsize(os.path.join(data, f)))
     table = summarise(rows)
     algos = [x for x in ALGOS_ALL if any(r["algo"] == x for r in rows)]
-    suite = render(table, files, algos, peers)
+    suite = render(table, files, algos, shown)
     process = render_process(table, files)
     phases = render_phases(rows, files)
     print(suite, process, phases, sep="\n\n")

@@ -119,6 +119,25 @@ fn dogleg_reaches_the_minimum_on_reference_files() {
     check_reference(Algorithm::Dogleg, LevenbergMarquardtConfig::default());
 }
 
+#[test]
+fn levenberg_marquardt_stops_at_once_on_a_file_at_its_optimum() {
+    // kitti_08's vertices are its optimum (χ² ≈ 1e-21): every step is
+    // rounding, and raising λ to find a decrease would waste factorisations.
+    let Some(path) = common::dataset("2d/kitti_08.g2o") else {
+        return;
+    };
+    let (mut graph, _) = read_file(&path, &ReadOptions::default()).unwrap();
+    let config = SolverConfig {
+        algorithm: Algorithm::LevenbergMarquardt,
+        ..Default::default()
+    };
+    let s = optimize(&mut graph, config).unwrap();
+    let trials: usize = s.trace.iter().map(|t| t.trials).sum();
+    assert!(trials <= 1, "{trials} trials, {:?}", s.termination);
+    assert!(s.termination.converged(), "{:?}", s.termination);
+    assert!(s.final_chi2 < 1e-15);
+}
+
 fn solve_all_in(folder: &str) {
     let Some(dir) = common::shared() else { return };
     let mut files: Vec<_> = std::fs::read_dir(dir.join("datasets").join(folder))

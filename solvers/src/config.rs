@@ -159,7 +159,7 @@ pub enum Termination {
     RelativeDecrease,
     /// The gradient is below `gradient_tolerance`.
     GradientNorm,
-    /// The step is below `step_tolerance`.
+    /// The step is below `step_tolerance` (LM: also a rejected step).
     StepSize,
     /// `max_iterations` done.
     MaxIterations,

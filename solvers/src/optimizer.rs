@@ -405,6 +405,7 @@ impl Optimizer {
             self.set_damping();
             self.save(graph);
             let mut trials = 0;
+            let mut rejected_small_step = false;
             let new_chi2 = loop {
                 trials += 1;
                 let solved = self.compute_step(lambda, &mut phases);
@@ -434,12 +435,16 @@ impl Optimizer {
                 }
                 lambda *= ni;
                 ni *= 2.0;
+                // A step too small to matter that fails is rounding at the
+                // optimum: raising λ would only shrink it further.
+                rejected_small_step = solved && self.step_is_small(graph);
                 if solved {
                     let t = Instant::now();
                     self.restore(graph);
                     phases.update += since(t);
                 }
-                if trials >= self.config.lm.max_trials || !lambda.is_finite() {
+                if rejected_small_step || trials >= self.config.lm.max_trials || !lambda.is_finite()
+                {
                     break None;
                 }
             };
@@ -458,7 +463,11 @@ impl Optimizer {
                 };
                 on_iteration(&stats);
                 summary.trace.push(stats);
-                return Termination::NoImprovement;
+                return if rejected_small_step {
+                    Termination::StepSize
+                } else {
+                    Termination::NoImprovement
+                };
             };
             let decrease = (chi2 - new_chi2) / chi2;
             chi2 = new_chi2;
