@@ -356,17 +356,13 @@ impl Optimizer {
             let stats = IterationStats {
                 iteration,
                 chi2,
-                lambda: None,
-                radius: None,
                 trials: 1,
                 gradient_max,
                 step_max: max_abs(&self.step),
-                time: since(began),
-                cumulative_time: since(start),
                 phases,
+                ..Default::default()
             };
-            on_iteration(&stats);
-            summary.trace.push(stats);
+            record(stats, began, start, summary, on_iteration);
             if self.step_is_small(graph) {
                 return Termination::StepSize;
             }
@@ -453,16 +449,12 @@ impl Optimizer {
                     iteration,
                     chi2,
                     lambda: Some(lambda),
-                    radius: None,
                     trials,
                     gradient_max,
-                    step_max: 0.0,
-                    time: since(began),
-                    cumulative_time: since(start),
                     phases,
+                    ..Default::default()
                 };
-                on_iteration(&stats);
-                summary.trace.push(stats);
+                record(stats, began, start, summary, on_iteration);
                 return if rejected_small_step {
                     Termination::StepSize
                 } else {
@@ -482,16 +474,13 @@ impl Optimizer {
                 iteration,
                 chi2,
                 lambda: Some(lambda),
-                radius: None,
                 trials,
                 gradient_max,
                 step_max: max_abs(&self.step),
-                time: since(began),
-                cumulative_time: since(start),
                 phases,
+                ..Default::default()
             };
-            on_iteration(&stats);
-            summary.trace.push(stats);
+            record(stats, began, start, summary, on_iteration);
             if small_step {
                 return Termination::StepSize;
             }
@@ -501,6 +490,21 @@ impl Optimizer {
         }
         Termination::MaxIterations
     }
+}
+
+/// Times one iteration's statistics (it began at `began`, the optimisation at
+/// `start`), reports them and appends them to the trace.
+fn record(
+    mut stats: IterationStats,
+    began: Instant,
+    start: Instant,
+    summary: &mut Summary,
+    on_iteration: &mut dyn FnMut(&IterationStats),
+) {
+    stats.time = since(began);
+    stats.cumulative_time = since(start);
+    on_iteration(&stats);
+    summary.trace.push(stats);
 }
 
 /// The error for a non-finite initial χ², naming the first offending edge.

@@ -1,6 +1,6 @@
 //! Powell's dogleg over the same linear system as Gauss-Newton.
 
-use super::{max_abs, since};
+use super::{max_abs, record, since};
 use crate::config::{IterationStats, PhaseTimes, Summary, Termination};
 use crate::optimizer::Optimizer;
 use cairn_core::Graph;
@@ -109,20 +109,14 @@ impl Optimizer {
             let mut stats = IterationStats {
                 iteration,
                 chi2,
-                lambda: None,
                 radius: Some(radius),
                 trials,
                 gradient_max,
-                step_max: 0.0,
-                time: 0.0,
-                cumulative_time: 0.0,
                 phases,
+                ..Default::default()
             };
             let Some(new_chi2) = accepted else {
-                stats.time = since(began);
-                stats.cumulative_time = since(start);
-                on_iteration(&stats);
-                summary.trace.push(stats);
+                record(stats, began, start, summary, on_iteration);
                 return Termination::NoImprovement;
             };
             let decrease = (chi2 - new_chi2) / chi2;
@@ -135,10 +129,7 @@ impl Optimizer {
             }
             stats.chi2 = chi2;
             stats.step_max = max_abs(&self.step);
-            stats.time = since(began);
-            stats.cumulative_time = since(start);
-            on_iteration(&stats);
-            summary.trace.push(stats);
+            record(stats, began, start, summary, on_iteration);
             if small_step {
                 return Termination::StepSize;
             }
