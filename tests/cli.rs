@@ -304,3 +304,36 @@ fn corrupt_then_solve_with_a_robust_kernel() {
         stderr(&o)
     );
 }
+
+#[test]
+fn lm_damping_and_tau_are_chosen_on_the_command_line() {
+    let dir = temp_dir("damping");
+    let input = dir.join("m.g2o");
+    let o = cairn(&["generate", "manhattan", "-n", "600", "-o", s(&input)]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let solve = |extra: &[&str]| {
+        let mut args = vec!["solve", s(&input), "--init", "file", "--solver", "lm"];
+        args.extend_from_slice(&["--json", "-q"]);
+        args.extend_from_slice(extra);
+        let o = cairn(&args);
+        assert!(o.status.success(), "{extra:?}: {}", stderr(&o));
+        let json: serde_json::Value = serde_json::from_slice(&o.stdout).unwrap();
+        let summary = &json["summary"];
+        let first_lambda = summary["trace"][0]["lambda"].as_f64().unwrap();
+        (summary["iterations"].as_u64().unwrap(), first_lambda)
+    };
+    let (marquardt, lambda) = solve(&[]);
+    let (levenberg, g2o_lambda) = solve(&["--damping", "levenberg"]);
+    let (_, small) = solve(&["--damping", "levenberg", "--tau", "1e-9"]);
+    // g2o's λ is sized by the largest diagonal entry of H: far above 1e-9.
+    assert!(lambda < 1e-9 && g2o_lambda > 1e-6, "{lambda} {g2o_lambda}");
+    // λ after the first step: τ's ratio, 1e-4, times the two updates' ratio.
+    let ratio = small / g2o_lambda;
+    assert!((1e-5..1e-3).contains(&ratio), "{small} {g2o_lambda}");
+    assert!(marquardt <= levenberg, "{marquardt} {levenberg}");
+    for bad in ["0", "-1", "nan", "inf"] {
+        let tau = format!("--tau={bad}");
+        let o = cairn(&["solve", s(&input), "--solver", "lm", &tau, "-q"]);
+        assert!(!o.status.success() && stderr(&o).contains("--tau"), "{bad}");
+    }
+}
