@@ -27,12 +27,17 @@ fn stderr(o: &Output) -> String {
     String::from_utf8_lossy(&o.stderr).into_owned()
 }
 
+/// A synthetic graph (`cairn generate KIND -n POSES`) written to `path`.
+fn generate(kind: &str, poses: usize, path: &Path) {
+    let o = cairn(&["generate", kind, "-n", &poses.to_string(), "-o", s(path)]);
+    assert!(o.status.success(), "{}", stderr(&o));
+}
+
 #[test]
 fn generate_then_solve_writes_an_optimised_graph() {
     let dir = temp_dir("gen");
     let (input, output) = (dir.join("m.g2o"), dir.join("out.g2o"));
-    let o = cairn(&["generate", "manhattan", "-n", "400", "-o", s(&input)]);
-    assert!(o.status.success(), "{}", stderr(&o));
+    generate("manhattan", 400, &input);
     let o = cairn(&["solve", s(&input), "-o", s(&output), "--json"]);
     assert!(o.status.success(), "{}", stderr(&o));
     let err = stderr(&o);
@@ -136,8 +141,7 @@ fn errors_name_the_file_and_line_and_exit_non_zero() {
 fn summary_and_stats_csv() {
     let dir = temp_dir("csv");
     let input = dir.join("s.g2o");
-    let o = cairn(&["generate", "sphere", "-n", "100", "-o", s(&input)]);
-    assert!(o.status.success(), "{}", stderr(&o));
+    generate("sphere", 100, &input);
     let (summary, stats) = (dir.join("summary.csv"), dir.join("stats.csv"));
     for solver in ["gn", "lm"] {
         let o = cairn(&[
@@ -177,11 +181,7 @@ fn summary_and_stats_csv() {
 fn fix_holds_vertices_and_cubicle_needs_repair() {
     let dir = temp_dir("fix");
     let input = dir.join("m.g2o");
-    assert!(
-        cairn(&["generate", "manhattan", "-n", "200", "-o", s(&input)])
-            .status
-            .success()
-    );
+    generate("manhattan", 200, &input);
     let o = cairn(&["solve", s(&input), "--fix", "0,7", "-q", "--json"]);
     assert!(o.status.success(), "{}", stderr(&o));
     let json: serde_json::Value = serde_json::from_slice(&o.stdout).unwrap();
@@ -259,11 +259,7 @@ fn check_reports_worst_edges_scaling_and_components() {
 fn corrupt_then_solve_with_a_robust_kernel() {
     let dir = temp_dir("robust");
     let (clean, bad) = (dir.join("clean.g2o"), dir.join("bad.g2o"));
-    assert!(
-        cairn(&["generate", "manhattan", "-n", "500", "-o", s(&clean)])
-            .status
-            .success()
-    );
+    generate("manhattan", 500, &clean);
     let o = cairn(&[
         "corrupt",
         s(&clean),
@@ -309,8 +305,7 @@ fn corrupt_then_solve_with_a_robust_kernel() {
 fn lm_damping_and_tau_are_chosen_on_the_command_line() {
     let dir = temp_dir("damping");
     let input = dir.join("m.g2o");
-    let o = cairn(&["generate", "manhattan", "-n", "600", "-o", s(&input)]);
-    assert!(o.status.success(), "{}", stderr(&o));
+    generate("manhattan", 600, &input);
     let solve = |extra: &[&str]| {
         let mut args = vec!["solve", s(&input), "--init", "file", "--solver", "lm"];
         args.extend_from_slice(&["--json", "-q"]);
