@@ -51,18 +51,33 @@ fn overshot(summary: &Summary) -> bool {
     })
 }
 
-/// One solve after another on the same graph structure, keeping the estimate
-/// of the lowest final χ².
+/// One solve after another on the same graph structure.
 struct Starts<'a> {
     optimizer: Optimizer,
     config: SolverConfig,
     on_iteration: &'a mut dyn FnMut(Initialization, &IterationStats),
-    best: Option<(Summary, Initialization, Vec<f64>)>,
+}
+
+/// The run of the lowest final χ² so far: its summary, start and estimate.
+struct Best {
+    summary: Summary,
+    start: Initialization,
+    estimate: Vec<f64>,
+}
+
+impl Best {
+    /// Keeps the graph's values if `summary` ends lower than the best so far.
+    fn keep_if_lower(&mut self, summary: Summary, start: Initialization, graph: &Graph) {
+        if summary.final_chi2 < self.summary.final_chi2 {
+            self.estimate.copy_from_slice(graph.values().params());
+            self.summary = summary;
+            self.start = start;
+        }
+    }
 }
 
 impl Starts<'_> {
-    /// Optimises from the graph's current values with `algorithm` and keeps
-    /// the result if it is the best so far.
+    /// Optimises from the graph's current values with `algorithm`.
     fn run(
         &mut self,
         graph: &mut Graph,
@@ -74,28 +89,27 @@ impl Starts<'_> {
             ..self.config
         });
         let on_iteration = &mut *self.on_iteration;
-        let summary = self
-            .optimizer
-            .optimize_with(graph, &mut |s| on_iteration(start, s))?;
-        if self
-            .best
-            .as_ref()
-            .is_none_or(|(best, ..)| summary.final_chi2 < best.final_chi2)
-        {
-            let estimate = graph.values().params().to_vec();
-            self.best = Some((summary.clone(), start, estimate));
-        }
-        Ok(summary)
+        self.optimizer
+            .optimize_with(graph, &mut |s| on_iteration(start, s))
     }
 
     /// [`Starts::run`] with the configured algorithm; if that is Gauss-Newton
     /// and it overshot, Levenberg-Marquardt from the same start as well.
-    fn run_guarded(&mut self, graph: &mut Graph, start: Initialization) -> Result<(), SolveError> {
+    /// Each run's estimate replaces `best` if it ends lower.
+    fn run_guarded(
+        &mut self,
+        graph: &mut Graph,
+        start: Initialization,
+        best: &mut Best,
+    ) -> Result<(), SolveError> {
         let values = graph.values().params().to_vec();
         let summary = self.run(graph, start, self.config.algorithm)?;
-        if self.config.algorithm == Algorithm::GaussNewton && overshot(&summary) {
+        let retry = self.config.algorithm == Algorithm::GaussNewton && overshot(&summary);
+        best.keep_if_lower(summary, start, graph);
+        if retry {
             graph.values_mut().params_mut().copy_from_slice(&values);
-            self.run(graph, start, Algorithm::LevenbergMarquardt)?;
+            let summary = self.run(graph, start, Algorithm::LevenbergMarquardt)?;
+            best.keep_if_lower(summary, start, graph);
         }
         Ok(())
     }
@@ -114,43 +128,48 @@ pub fn optimize_from(
         optimizer: Optimizer::new(graph, config)?,
         config,
         on_iteration,
-        best: None,
     };
     match init {
-        Initialization::File => {
-            let summary = starts.run(graph, init, algorithm)?;
-            return Ok((summary, init));
-        }
-        Initialization::SpanningTree => {
-            spanning_tree_initialize(graph);
-            let summary = starts.run(graph, init, algorithm)?;
-            return Ok((summary, init));
-        }
+        Initialization::File => {}
+        Initialization::SpanningTree => spanning_tree_initialize(graph),
         Initialization::Chordal => {
             chordal_initialize(graph)?;
-            let summary = starts.run(graph, init, algorithm)?;
-            return Ok((summary, init));
         }
         Initialization::ChordalIsotropic => {
             chordal_initialize_with(graph, ChordalWeights::Isotropic)?;
-            let summary = starts.run(graph, init, algorithm)?;
-            return Ok((summary, init));
         }
-        Initialization::Auto => {}
+        Initialization::Auto => return optimize_from_best_start(graph, &mut starts),
     }
-    // Auto: a failure from a chordal start only rules that start out.
+    let summary = starts.run(graph, init, algorithm)?;
+    Ok((summary, init))
+}
+
+/// [`Initialization::Auto`]: the file's values first, then both chordal
+/// starts; the graph ends with the estimate of the lowest final χ².
+fn optimize_from_best_start(
+    graph: &mut Graph,
+    starts: &mut Starts<'_>,
+) -> Result<(Summary, Initialization), SolveError> {
     let initial = graph.values().params().to_vec();
-    starts.run(graph, Initialization::File, algorithm)?;
+    let summary = starts.run(graph, Initialization::File, starts.config.algorithm)?;
+    let mut best = Best {
+        summary,
+        start: Initialization::File,
+        estimate: graph.values().params().to_vec(),
+    };
+    // A failure from a chordal start only rules that start out.
     for (start, weights) in [
         (Initialization::Chordal, ChordalWeights::Information),
         (Initialization::ChordalIsotropic, ChordalWeights::Isotropic),
     ] {
         graph.values_mut().params_mut().copy_from_slice(&initial);
         if chordal_initialize_with(graph, weights).is_ok() {
-            let _ = starts.run_guarded(graph, start);
+            let _ = starts.run_guarded(graph, start, &mut best);
         }
     }
-    let (summary, start, estimate) = starts.best.expect("the file start was solved");
-    graph.values_mut().params_mut().copy_from_slice(&estimate);
-    Ok((summary, start))
+    graph
+        .values_mut()
+        .params_mut()
+        .copy_from_slice(&best.estimate);
+    Ok((best.summary, best.start))
 }
