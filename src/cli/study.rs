@@ -6,8 +6,8 @@
 
 use super::fs::front_end_config;
 use super::fs_report::load_tracks;
-use super::study_sweeps::{noise_study, particle_study, rmse_by_distance};
-use cairn::plot::{LinePlot, draw_lines};
+use super::study_sweeps::{noise_study, particle_study, plot_in_report, rmse_by_distance};
+use cairn::plot::LinePlot;
 use cairn::slam::Track;
 use cairn::slam::course::Course;
 use cairn::slam::estimator::{EstimatorBuilder, EstimatorKind};
@@ -230,19 +230,14 @@ pub fn run(a: StudyArgs) -> Result<(), String> {
         series.push((kind.name().to_string(), curve));
         let _ = writeln!(md, "![{} map]({folder}/{file})", kind.name());
     }
-    draw_lines(
-        &LinePlot {
-            title: &format!("{}: map RMSE while driving", track.name),
-            x_desc: "distance driven (m)",
-            y_desc: "map RMSE (m)",
-            series: &series,
-        },
-        &plots.join("rmse_distance.svg"),
-    )?;
-    let _ = writeln!(
-        md,
-        "\n![map RMSE against distance]({folder}/rmse_distance.svg)\n"
-    );
+    let plot = LinePlot {
+        title: &format!("{}: map RMSE while driving", track.name),
+        x_desc: "distance driven (m)",
+        y_desc: "map RMSE (m)",
+        series: &series,
+    };
+    let alt = "map RMSE against distance";
+    plot_in_report(&mut md, &plot, &plots, &folder, "rmse_distance.svg", alt)?;
 
     particle_study(&mut md, &sim, &plots, &folder)?;
     noise_study(&mut md, &tracks[detail], &standard)?;

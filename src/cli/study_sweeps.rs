@@ -134,19 +134,33 @@ pub(super) fn particle_study(
         }
         series.push((kind.name().to_string(), curve));
     }
-    draw_lines(
-        &LinePlot {
-            title: "FastSLAM: map RMSE against particles",
-            x_desc: "particles (log10)",
-            y_desc: "map RMSE (m)",
-            series: &series,
-        },
-        &plots.join("particles.svg"),
-    )?;
-    let _ = writeln!(
+    let plot = LinePlot {
+        title: "FastSLAM: map RMSE against particles",
+        x_desc: "particles (log10)",
+        y_desc: "map RMSE (m)",
+        series: &series,
+    };
+    plot_in_report(
         md,
-        "\n![map RMSE against particles]({folder}/particles.svg)\n"
-    );
+        &plot,
+        plots,
+        folder,
+        "particles.svg",
+        "map RMSE against particles",
+    )
+}
+
+/// Draws `plot` as `plots/file` and links it from the report, captioned `alt`.
+pub(super) fn plot_in_report(
+    md: &mut String,
+    plot: &LinePlot,
+    plots: &Path,
+    folder: &str,
+    file: &str,
+    alt: &str,
+) -> Result<(), String> {
+    draw_lines(plot, &plots.join(file))?;
+    let _ = writeln!(md, "\n![{alt}]({folder}/{file})\n");
     Ok(())
 }
 
