@@ -197,7 +197,9 @@ pub struct PhaseTimes {
     pub solve: f64,
     /// Applying the step (and LM backups).
     pub update: f64,
-    /// χ² evaluations outside linearisation (LM trial steps).
+    /// χ² evaluations apart from a linearisation. GN, LM and dogleg take χ²
+    /// from the linearisation of each point they try, so theirs is 0; kept
+    /// for the `--stats` and JSON columns.
     pub chi2: f64,
 }
 
