@@ -8,23 +8,24 @@ use crate::sim::Simulation;
 /// Feeds a simulated log to a new graph front end and scores the result.
 pub fn run_and_score(sim: &Simulation, config: FrontEndConfig) -> (GraphSlam, Report) {
     let mut slam = GraphSlam::new(config);
-    for record in &sim.log {
-        slam.process(record);
-    }
-    let finished = slam.finish();
-    let report = with_warnings(score(sim, &slam), &slam, finished);
+    let report = feed_and_score(sim, &mut slam);
     (slam, report)
 }
 
 /// Feeds a simulated log to the estimator `builder` describes and scores it.
 pub fn run_estimator(sim: &Simulation, builder: &EstimatorBuilder) -> (Box<dyn Estimator>, Report) {
     let mut slam = builder.build();
+    let report = feed_and_score(sim, slam.as_mut());
+    (slam, report)
+}
+
+/// Feeds the log, finishes, and scores.
+fn feed_and_score(sim: &Simulation, slam: &mut dyn Estimator) -> Report {
     for record in &sim.log {
         slam.process(record);
     }
     let finished = slam.finish();
-    let report = with_warnings(score(sim, slam.as_ref()), slam.as_ref(), finished);
-    (slam, report)
+    with_warnings(score(sim, slam), slam, finished)
 }
 
 /// The report with the run's failed optimisations, the final one's included.
