@@ -12,7 +12,7 @@ use nalgebra::Vector2;
 use rand::rngs::StdRng;
 use rand::seq::SliceRandom;
 use rand::{Rng, SeedableRng};
-use rand_distr::{Distribution, Normal, Poisson};
+use rand_distr::{Distribution, Poisson, StandardNormal};
 use std::collections::HashMap;
 use std::f64::consts::PI;
 
@@ -189,16 +189,28 @@ enum Source {
     FalsePositive,
 }
 
-/// Zero-mean Gaussian noise of standard deviation `sigma`, clamped to
-/// [1e-300, f64::MAX]: a noise-free sensor (σ = 0) or a configuration error
-/// (negative, NaN or infinite σ) never makes drawing noise fail.
-fn gaussian(sigma: f64) -> Normal<f64> {
+/// Zero-mean Gaussian noise: σ times a standard normal draw (the same draws
+/// as `rand_distr::Normal`, which refuses some σ instead).
+struct Gaussian {
+    sigma: f64,
+}
+
+impl Distribution<f64> for Gaussian {
+    fn sample<R: Rng + ?Sized>(&self, rng: &mut R) -> f64 {
+        self.sigma * rng.sample::<f64, _>(StandardNormal)
+    }
+}
+
+/// Gaussian noise of standard deviation `sigma`, clamped to [1e-300,
+/// f64::MAX]: a noise-free sensor (σ = 0) or a configuration error
+/// (negative, NaN or infinite σ) still draws finite noise.
+fn gaussian(sigma: f64) -> Gaussian {
     let sigma = if sigma.is_nan() {
         1e-300
     } else {
         sigma.clamp(1e-300, f64::MAX)
     };
-    Normal::new(0.0, sigma).unwrap_or_else(|_| unreachable!("σ = {sigma} is finite"))
+    Gaussian { sigma }
 }
 
 /// Simulates `config.laps` laps of `track` along `course`.
@@ -537,7 +549,7 @@ fn cone_surface(
     centre: &Vector2<f64>,
     color: Color,
     rng: &mut StdRng,
-    noise: &Normal<f64>,
+    noise: &Gaussian,
 ) -> Vec<[f64; 3]> {
     let (base, height) = if color == Color::BigOrange {
         BIG_CONE
