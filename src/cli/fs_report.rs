@@ -133,16 +133,16 @@ pub fn run(a: ReportArgs) -> Result<(), String> {
          each (the poses between follow; the final optimisation refines them all). Every pose \
          and two steps took 160 ms on the 828 m hairpins, whose tight turns let each cone be seen \
          from far more poses; now about 50 ms there, with the same final map (0.080 m) and \
-         association (99.36%). Run alone (1,400 vertices, 15,000 edges): building the graph ~6 \
-         ms, structure and \
-         symbolic analysis ~15 ms, the step ~25 ms, of which ~17 ms is the numeric factorisation: \
+         association (99.36%). Run alone (1,400 vertices, 15,000 edges): building the graph \
+         ~6 ms, structure and symbolic analysis ~15 ms, the step ~25 ms, of which ~17 ms is the \
+         numeric factorisation: \
          cones seen across the hairpin legs couple most of the kept poses, so the factor has \
          ~580,000 non-zeros for ~3,600 unknowns under every ordering tried (AMD, block AMD, \
          landmarks first: 575,000–605,000), and faer's two-thread factorisation was slower. \
          Fewer sightings barely thin it (12: 550,000). Fewer poses do, but cost association: \
          every 6th pose 99.52 → 99.48% (15 tracks × 10 seeds), every 8th 99.22% (measured before \
-         the exchange step). This report runs two runs at once, and latencies on this shared 2-core machine vary up to 3× between \
-         identical runs and between days.\n\
+         the exchange step). This report runs two runs at once, and latencies on this shared \
+         2-core machine vary up to 3× between identical runs and between days.\n\
          - **Association** (99.7–99.9% on most tracks): the `standard` preset gates at χ² \
          99.9% (13.8); at 99% about 1% of true detections fell outside the gate and stayed \
          unmatched (98.6% overall). With the `hard` preset's false positive per scan the wider \
