@@ -150,40 +150,6 @@ fn read_text(path: &Path) -> Result<String, String> {
     std::fs::read_to_string(path).map_err(|e| format!("{}: {e}", path.display()))
 }
 
-/// The front-end configuration that matches a noise preset, for `kind`.
-pub fn front_end_config(
-    preset: &Preset,
-    association: AssociationMethod,
-    kind: EstimatorKind,
-) -> FrontEndConfig {
-    let s = &preset.sensor;
-    FrontEndConfig {
-        association,
-        range_sigma: s.range_sigma,
-        range_sigma_relative: s.range_sigma_relative,
-        bearing_sigma: s.bearing_sigma,
-        fov: s.fov,
-        max_range: s.max_range,
-        speed_sigma_relative: 2.0 * preset.odometry.speed_scale_bias + 0.01,
-        yaw_rate_sigma: 2.0 * preset.odometry.yaw_rate_bias + 0.015,
-        yaw_rate_noise: preset.odometry.yaw_rate_sigma,
-        color_wrong: s.wrong_color,
-        // For the graph, the χ² gate at 99.9% instead of 99% matched 99.4%
-        // of detections instead of 98.6% on the `standard` sweep (12 shared
-        // + 3 random tracks × 10 seeds) at the same map error; with the
-        // `hard` preset's false positive per scan it let in enough wrong
-        // matches to lose more laps (91.9% → 89.4%). EKF-SLAM lost a lap
-        // with it too (random-0, 3 seeds: 99.4% → 84.5%).
-        gate: if kind == EstimatorKind::Graph && s.false_positives < 0.5 {
-            13.82
-        } else {
-            9.21
-        },
-        color_unknown: s.unknown_color,
-        ..FrontEndConfig::default()
-    }
-}
-
 pub fn run_sim(a: SimArgs) -> Result<(), String> {
     let preset = Preset::by_name(&a.preset).ok_or("--preset must be standard or hard")?;
     if !(a.laps > 0.0 && a.speed > 0.0 && a.laps.is_finite() && a.speed.is_finite()) {
@@ -254,7 +220,7 @@ pub fn run_slam(a: SlamArgs) -> Result<(), String> {
     let preset = Preset::by_name(&a.noise).ok_or("--noise must be standard or hard")?;
     let kind = EstimatorKind::by_name(&a.estimator)
         .ok_or("--estimator must be graph, ekf, fastslam1 or fastslam2")?;
-    let mut config = front_end_config(&preset, association, kind);
+    let mut config = FrontEndConfig::for_preset(&preset, association, kind);
     config.motion = match a.motion.as_str() {
         "unicycle" => MotionModel::Unicycle,
         "bicycle" if a.wheelbase > 0.0 => MotionModel::Bicycle {

@@ -2,11 +2,12 @@
 //! association method × seed, simulated, mapped and scored into one
 //! Markdown report with plots.
 
-use super::fs::{front_end_config, plot_run};
+use super::fs::plot_run;
 use cairn::slam::Track;
 use cairn::slam::course::Course;
 use cairn::slam::estimator::EstimatorKind;
 use cairn::slam::eval::Report;
+use cairn::slam::frontend::FrontEndConfig;
 use cairn::slam::frontend::association::AssociationMethod;
 use cairn::slam::run::run_and_score;
 use cairn::slam::sim::{Preset, SimConfig, simulate};
@@ -71,7 +72,7 @@ pub fn run(a: ReportArgs) -> Result<(), String> {
             let sim = simulate(track, course, &config);
             let (slam, report) = run_and_score(
                 &sim,
-                front_end_config(preset, *method, EstimatorKind::Graph),
+                FrontEndConfig::for_preset(preset, *method, EstimatorKind::Graph),
             );
             for warning in &report.warnings {
                 eprintln!("warning: {} seed {seed}: {warning}", tracks[*t].0.name);
@@ -224,7 +225,7 @@ pub fn run(a: ReportArgs) -> Result<(), String> {
         let sim = simulate(track, course, &config);
         let (slam, _) = run_and_score(
             &sim,
-            front_end_config(
+            FrontEndConfig::for_preset(
                 &config.preset,
                 AssociationMethod::Tracking,
                 EstimatorKind::Graph,

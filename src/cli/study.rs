@@ -4,7 +4,6 @@
 //! FastSLAM against its particle count, and EKF-SLAM against the measurement
 //! covariance it assumes.
 
-use super::fs::front_end_config;
 use super::fs_report::load_tracks;
 use super::study_sweeps::{noise_study, particle_study, plot_in_report, rmse_by_distance};
 use cairn::plot::LinePlot;
@@ -12,6 +11,7 @@ use cairn::slam::Track;
 use cairn::slam::course::Course;
 use cairn::slam::estimator::{EstimatorBuilder, EstimatorKind};
 use cairn::slam::eval::Report;
+use cairn::slam::frontend::FrontEndConfig;
 use cairn::slam::frontend::association::AssociationMethod;
 use cairn::slam::run::run_estimator;
 use cairn::slam::sim::{Preset, SimConfig, Simulation, simulate};
@@ -109,7 +109,7 @@ pub fn run(a: StudyArgs) -> Result<(), String> {
         .map(|(t, preset, kind, method, seed)| {
             let sim = simulate_on(&tracks[*t], preset, *seed);
             let mut builder =
-                EstimatorBuilder::new(*kind, front_end_config(preset, *method, *kind));
+                EstimatorBuilder::new(*kind, FrontEndConfig::for_preset(preset, *method, *kind));
             builder.particles = a.particles;
             builder.seed = *seed;
             let (slam, report) = run_estimator(&sim, &builder);

@@ -1,7 +1,7 @@
 //! The sweeps of `cairn fs-study`: map error along the run, particles,
 //! detector noise.
 
-use super::fs::{front_end_config, plot_run};
+use super::fs::plot_run;
 use super::study::simulate_on;
 use cairn::plot::{LinePlot, draw_lines};
 use cairn::slam::Track;
@@ -36,7 +36,7 @@ pub(super) fn rmse_by_distance(
     }
     let mut builder = EstimatorBuilder::new(
         kind,
-        front_end_config(&Preset::standard(), AssociationMethod::Tracking, kind),
+        FrontEndConfig::for_preset(&Preset::standard(), AssociationMethod::Tracking, kind),
     );
     builder.particles = particles;
     let mut slam = builder.build();
@@ -94,7 +94,7 @@ pub(super) fn particle_study(
         .map(|&(kind, n, seed)| {
             let mut builder = EstimatorBuilder::new(
                 kind,
-                front_end_config(&Preset::standard(), AssociationMethod::Tracking, kind),
+                FrontEndConfig::for_preset(&Preset::standard(), AssociationMethod::Tracking, kind),
             );
             builder.particles = n;
             builder.seed = seed;
@@ -182,7 +182,7 @@ pub(super) fn noise_study(
         .map(|&(k, seed)| {
             let sim = simulate_on(track, preset, seed);
             let mut config: FrontEndConfig =
-                front_end_config(preset, AssociationMethod::Tracking, EstimatorKind::Ekf);
+                FrontEndConfig::for_preset(preset, AssociationMethod::Tracking, EstimatorKind::Ekf);
             let f = k.sqrt();
             config.range_sigma *= f;
             config.range_sigma_relative *= f;
