@@ -1,6 +1,7 @@
 //! The simulator, data association, evaluation and the whole pipeline.
 
 use cairn_slam::course::Course;
+use cairn_slam::estimator::EstimatorKind;
 use cairn_slam::eval::{aligned_rms, association_accuracy, rigid_alignment};
 use cairn_slam::files::Association;
 use cairn_slam::frontend::association::AssociationMethod;
@@ -165,9 +166,9 @@ fn a_lap_drifting_more_than_half_a_cone_spacing_still_closes_correctly() {
 
 #[test]
 fn the_loop_closure_learns_the_yaw_rate_bias() {
-    // The `standard` preset's gyro reads 0.002 rad/s high. The online
-    // calibration follows each scan's noisy heading correction; the full
-    // optimisation fits the bias to the whole lap.
+    // The `standard` preset's gyro reads 0.002 rad/s high. The smoothing
+    // window estimates it online from 2.5 s at a time; the full
+    // optimisation fits it to the whole lap, closer still.
     let (track, course) = random_track(2, &TrackRules::default());
     let (mut online_error, mut fitted_error) = (0.0, 0.0);
     for seed in 1..=6 {
@@ -196,7 +197,7 @@ fn the_loop_closure_learns_the_yaw_rate_bias() {
         fitted_error += (fitted - truth).abs();
     }
     assert!(
-        fitted_error < 0.5 * online_error,
+        fitted_error < online_error,
         "fitted {fitted_error}, online {online_error}"
     );
 }
@@ -391,4 +392,86 @@ fn a_saved_map_localises_a_new_run_from_an_unknown_start() {
         "localised from the first scans on"
     );
     assert_eq!(slam.map().len(), sim.truth_map.len());
+}
+
+/// A run of random track `track` with the `hard` preset, tracking association.
+fn hard_run(track: u64, seed: u64) -> (GraphSlam, cairn_slam::eval::Report) {
+    let (track, course) = random_track(track, &TrackRules::default());
+    let preset = Preset::hard();
+    let config =
+        FrontEndConfig::for_preset(&preset, AssociationMethod::Tracking, EstimatorKind::Graph);
+    let sim = simulate(
+        &track,
+        &course,
+        &SimConfig {
+            seed,
+            preset,
+            ..SimConfig::default()
+        },
+    );
+    run_and_score(&sim, config)
+}
+
+#[test]
+fn a_hard_lap_that_maps_the_start_area_again_still_closes() {
+    // Random track 0, `hard` seed 1: the first lap ends 5.5 m along the
+    // track and 5° off, about one cone spacing, so the gates map the start
+    // area a second time and a single scan puts too few detections on the
+    // first lap's landmarks. The landmarks of the lap's last 40 m, aligned
+    // to those of its start, close the loop.
+    let (slam, report) = hard_run(0, 1);
+    println!("{report:?}");
+    assert_eq!(slam.loop_closures(), 1);
+    assert!(report.ate < 1.0, "{}", report.ate);
+    assert!(
+        report.association_accuracy > 0.95,
+        "{}",
+        report.association_accuracy
+    );
+}
+
+#[test]
+fn the_smoothing_window_learns_the_yaw_rate_bias_while_mapping() {
+    // The `hard` preset's gyro reads 0.01 rad/s high. Estimated in the
+    // window beside the poses, the bias is known to about 0.001 rad/s after
+    // 40 s of the first lap (the per-scan heading residual it replaced:
+    // 0.0019 rad/s rms on 15 tracks × 3 seeds).
+    let preset = Preset::hard();
+    let truth = preset.odometry.yaw_rate_bias;
+    let mut squares = 0.0;
+    let mut runs = 0;
+    for track_seed in 0..3 {
+        let (track, course) = random_track(track_seed, &TrackRules::default());
+        for seed in 0..2 {
+            let config = SimConfig {
+                seed,
+                preset: preset.clone(),
+                ..SimConfig::default()
+            };
+            let sim = simulate(&track, &course, &config);
+            let front_end = FrontEndConfig::for_preset(
+                &preset,
+                AssociationMethod::Tracking,
+                EstimatorKind::Graph,
+            );
+            let mut slam = GraphSlam::new(front_end);
+            for r in &sim.log {
+                if matches!(r, Record::Cones { t, .. } if *t > 40.0) {
+                    break;
+                }
+                slam.process(r);
+            }
+            let online = slam.calibration().yaw_rate_bias;
+            println!("track {track_seed} seed {seed}: {online}");
+            assert_eq!(slam.loop_closures(), 0);
+            assert!(
+                (online - truth).abs() < 0.002,
+                "track {track_seed} seed {seed}: {online}"
+            );
+            squares += (online - truth).powi(2);
+            runs += 1;
+        }
+    }
+    let rms = (squares / runs as f64).sqrt();
+    assert!(rms < 0.0012, "{rms}");
 }

@@ -34,7 +34,16 @@ impl Calibration {
 
     /// Nudges the corrections toward what one scan showed: the odometry
     /// predicted `pred` from `previous`, the landmarks put the car at `pose`.
-    pub(super) fn learn(&mut self, previous: &SE2, pred: &SE2, pose: &SE2, dt: f64) {
+    /// The yaw-rate bias only with `learn_bias`: while mapping, the
+    /// smoothing window estimates it beside the poses instead.
+    pub(super) fn learn(
+        &mut self,
+        previous: &SE2,
+        pred: &SE2,
+        pose: &SE2,
+        dt: f64,
+        learn_bias: bool,
+    ) {
         let predicted = previous.between(pred);
         let corrected = previous.between(pose);
         let length = predicted.t.norm();
@@ -44,7 +53,9 @@ impl Calibration {
         let along = corrected.t.dot(&predicted.t) / length;
         let ratio = (along / length).clamp(0.8, 1.2);
         self.speed_scale *= 1.0 + CALIBRATION_GAIN * (ratio - 1.0);
-        let residual = cairn_core::se2::normalize_angle(corrected.theta - predicted.theta);
-        self.yaw_rate_bias -= CALIBRATION_GAIN * residual / dt;
+        if learn_bias {
+            let residual = cairn_core::se2::normalize_angle(corrected.theta - predicted.theta);
+            self.yaw_rate_bias -= CALIBRATION_GAIN * residual / dt;
+        }
     }
 }

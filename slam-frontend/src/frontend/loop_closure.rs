@@ -6,9 +6,12 @@ use super::association::{AssociationMethod, associate, through_pose};
 use super::{GraphSlam, Mode, Observation, align, chi2_99, nearest_information};
 use crate::color::Color;
 use crate::log::Detection;
-use crate::sighting::View;
+use crate::sighting::{START_AREA, View};
 use nalgebra::{Matrix2, Matrix3, Vector2};
 use std::time::Instant;
+
+/// How far back the landmarks of [`GraphSlam::recent_submap`] were made (m).
+const RECENT: f64 = 40.0;
 
 /// A scan near the start, kept until the loop closes.
 pub(super) struct PendingScan {
@@ -71,12 +74,17 @@ impl GraphSlam {
         // detections they matched to confirmed landmarks belong to the
         // lap's end. The rest (unmatched, or on tentative landmarks the
         // drift made) propose the alignments, and at least half of them
-        // (or of the old landmarks near) must agree.
+        // (or of the old landmarks near) must agree. So do the start
+        // line's big orange cones, which anchor a large correction even
+        // when the gates have matched them to the lap's end's duplicates.
         let first = self.detections.len() - cones.len();
         let unexplained: Vec<Detection> = cones
             .iter()
             .zip(&self.detections[first..])
-            .filter(|(_, d)| d.2.is_none_or(|l| !self.landmarks[l].sighting.confirmed))
+            .filter(|(c, d)| {
+                c.color == Color::BigOrange
+                    || d.2.is_none_or(|l| !self.landmarks[l].sighting.confirmed)
+            })
             .map(|(c, _)| c.clone())
             .collect();
         let needed = self
@@ -86,9 +94,19 @@ impl GraphSlam {
         // A correction of half a cone spacing or more could as well be one
         // spacing off; the start line's orange cones must confirm it.
         let unambiguous = align::unambiguous_shift(&map);
-        let Some(aligned) =
-            align::recognise(&map, cones, &unexplained, &self.pose, needed, unambiguous)
-        else {
+        // Where drift put the car's estimate more than a gate away, the
+        // lap's end has mapped the start area again: its landmarks, each
+        // placed by many sightings, are aligned when the scan alone is not.
+        let found = align::recognise(&map, cones, &unexplained, &self.pose, needed, unambiguous)
+            .or_else(|| {
+                let recent = self.recent_submap();
+                let needed = self
+                    .config
+                    .loop_min_returned
+                    .max(recent.len().min(old.len()) / 2);
+                align::recognise(&map, &recent, &recent, &self.pose, needed, unambiguous)
+            });
+        let Some(aligned) = found else {
             return false;
         };
         for (i, d) in cones.iter().enumerate() {
@@ -111,6 +129,32 @@ impl GraphSlam {
             }
         }
         true
+    }
+
+    /// The landmarks mapped in the last [`RECENT`] metres of this lap near
+    /// the car, as the car sees them.
+    fn recent_submap(&self) -> Vec<Detection> {
+        let reach = self.config.max_range + 5.0;
+        let distance = self.motion.distance();
+        let inverse = self.pose.inverse();
+        (0..self.landmarks.len())
+            .filter(|&l| {
+                let lm = &self.landmarks[l];
+                self.alias[l] == l
+                    && lm.sighting.confirmed
+                    && !lm.removed
+                    && lm.sighting.created_distance >= START_AREA
+                    && distance - lm.sighting.created_distance < RECENT
+                    && (lm.mean - self.pose.t).norm() < reach
+            })
+            .map(|l| Detection {
+                position: inverse.transform_point(&self.landmarks[l].mean),
+                range_bearing: None,
+                color: self.landmarks[l].sighting.color(),
+                id: None,
+                covariance: None,
+            })
+            .collect()
     }
 
     /// Places the car on the given map ([`align::place`]).

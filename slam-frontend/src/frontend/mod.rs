@@ -111,6 +111,7 @@ pub struct GraphSlam {
 impl GraphSlam {
     /// A front end that starts mapping at the origin (or the log's `start`).
     pub fn new(config: FrontEndConfig) -> Self {
+        let window = window::Window::new(config.yaw_rate_sigma);
         Self {
             motion: Odometry::new(config.motion, config.motion_noise()),
             config,
@@ -130,7 +131,7 @@ impl GraphSlam {
             loop_closures: 0,
             calibration: Calibration::default(),
             timing: Timing::default(),
-            window: window::Window::default(),
+            window,
             near_start_scans: Vec::new(),
             warnings: Vec::new(),
         }
@@ -277,7 +278,9 @@ impl GraphSlam {
         let bias_used = self.calibration.yaw_rate_bias;
         if anchors >= 3 {
             let dt = self.poses.last().map_or(0.0, |p| t - p.t);
-            self.calibration.learn(&previous, &pred, &pose, dt);
+            let learn_bias = self.mode != Mode::Mapping;
+            self.calibration
+                .learn(&previous, &pred, &pose, dt, learn_bias);
         }
         self.pose = pose;
         self.pose_cov = pose_cov;
