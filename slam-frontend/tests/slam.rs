@@ -475,3 +475,27 @@ fn the_smoothing_window_learns_the_yaw_rate_bias_while_mapping() {
     let rms = (squares / runs as f64).sqrt();
     assert!(rms < 0.0012, "{rms}");
 }
+
+#[test]
+fn mapping_can_go_on_after_the_loop_closes() {
+    // The scans near the start are matched again once the loop closes,
+    // which adds sightings of earlier poses; the smoothing window that keeps
+    // running must still find them in pose order (it read out of bounds).
+    for seed in 1..=3 {
+        let (track, course) = random_track(1, &TrackRules::default());
+        let sim = simulate_seed(&track, &course, seed);
+        let config = FrontEndConfig {
+            localise_after_loop: false,
+            ..FrontEndConfig::default()
+        };
+        let (slam, report) = run_and_score(&sim, config);
+        println!("seed {seed}: {report:?}");
+        assert!(slam.loop_closures() >= 1, "seed {seed}");
+        assert_eq!(slam.mode(), Mode::Mapping);
+        assert!(
+            report.association_accuracy > 0.97,
+            "seed {seed}: {report:?}"
+        );
+        assert!(report.map_rmse < 0.3, "seed {seed}: {report:?}");
+    }
+}

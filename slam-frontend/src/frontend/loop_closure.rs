@@ -37,9 +37,11 @@ impl GraphSlam {
     /// spacing they match the wrong cones and bend the whole loop. So once
     /// the car is back near the start, these landmarks are left out of the
     /// gates ([`Self::candidates`]) and matched only through place
-    /// recognition.
+    /// recognition. Once the loop has closed, the map holds together and
+    /// later laps (when mapping goes on) are matched by the gates.
     pub(super) fn awaits_loop_closure(&self, l: usize) -> bool {
         self.mode == Mode::Mapping
+            && self.closed_at.is_none()
             && self.landmarks[l].sighting.view == View::Left
             && self.is_start_area(l)
     }
@@ -227,6 +229,9 @@ impl GraphSlam {
                 });
             }
         }
+        // The smoothing window folds sightings in pose order.
+        self.observations.sort_by_key(|o| o.pose);
+        self.refold();
     }
 
     /// Optimises every pose and confirmed landmark, merges duplicates, and
@@ -234,6 +239,7 @@ impl GraphSlam {
     pub(super) fn close_loop(&mut self) {
         let start = Instant::now();
         self.loop_closures += 1;
+        self.closed_at = Some(self.motion.distance());
         if let Err(e) = self.optimise(super::optimise::Batch::loop_closure()) {
             self.warnings.push(format!(
                 "loop closure {}: the optimisation failed ({e}); kept the estimate",

@@ -20,7 +20,7 @@ pub(crate) use optimise::MERGE_RADIUS;
 use crate::files::{Association, StampedPose};
 use crate::log::{Detection, Record};
 use crate::motion::{Odometry, compose_with_cov};
-use crate::sighting::{Sighting, near_start};
+use crate::sighting::{MIN_LOOP, Sighting, near_start};
 use crate::track::Cone;
 use association::{Candidates, Pair, associate, through_pose};
 use cairn_core::SE2;
@@ -89,6 +89,7 @@ pub struct GraphSlam {
     motion: Odometry,
     poses: Vec<StampedPose>,
     odometry: Vec<OdometryEdge>,
+    /// Every sighting, in pose order (the smoothing window folds them so).
     observations: Vec<Observation>,
     landmarks: Vec<Landmark>,
     /// Merged landmark → the one it was merged into.
@@ -100,6 +101,8 @@ pub struct GraphSlam {
     /// False until the first scan has been placed on a given map.
     aligned: bool,
     loop_closures: usize,
+    /// Distance driven at the last loop closure.
+    closed_at: Option<f64>,
     calibration: Calibration,
     timing: Timing,
     window: window::Window,
@@ -129,6 +132,7 @@ impl GraphSlam {
             started: false,
             aligned: true,
             loop_closures: 0,
+            closed_at: None,
             calibration: Calibration::default(),
             timing: Timing::default(),
             window,
@@ -356,7 +360,13 @@ impl GraphSlam {
             first: self.detections.len() - cones.len(),
             cones: cones.to_vec(),
         });
-        if returned >= self.config.loop_min_returned || self.recognise_place(cones, &covs, keyframe)
+        // One closure per lap, when mapping goes on after the first.
+        let lap_driven = self
+            .closed_at
+            .is_none_or(|d| self.motion.distance() > d + MIN_LOOP);
+        if lap_driven
+            && (returned >= self.config.loop_min_returned
+                || self.recognise_place(cones, &covs, keyframe))
         {
             self.close_loop();
             self.match_near_start_scans();

@@ -241,6 +241,7 @@ impl GraphSlam {
                 1.0
             };
             let info = o.information * weight;
+            debug_assert!(o.pose > anchor, "sighting of a fixed pose left unfolded");
             let p = 3 * (o.pose - anchor - 1);
             add_block(&mut w.hpp, p, p, &(jx.transpose() * info * jx));
             add_vec(&mut w.bp, p, &(-(jx.transpose() * info * e)));
