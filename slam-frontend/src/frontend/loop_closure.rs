@@ -186,15 +186,22 @@ impl GraphSlam {
     /// optimisation.
     pub(super) fn match_near_start_scans(&mut self) {
         let scans = std::mem::take(&mut self.near_start_scans);
+        self.match_again(&scans, self.config.gate);
+    }
+
+    /// Matches the unmatched detections of `scans` from their poses as
+    /// they now stand, by maximum likelihood within the χ² `gate` among the
+    /// landmarks each scan left free.
+    pub(super) fn match_again(&mut self, scans: &[PendingScan], gate: f64) {
         let pose_cov = self.pose_cov;
-        for scan in &scans {
+        for scan in scans {
             let pose = self.poses[scan.keyframe].pose;
             let covs: Vec<Matrix2<f64>> = scan
                 .cones
                 .iter()
                 .map(|d| self.config.detection_cov(d))
                 .collect();
-            let (mut candidates, _) = self.candidates(&pose, &pose_cov, &scan.cones, &covs);
+            let (mut candidates, _) = self.candidates(&pose, &pose_cov, &scan.cones, &covs, gate);
             let slots = scan.first..scan.first + scan.cones.len();
             let matched: Vec<Option<usize>> = self.detections[slots.clone()]
                 .iter()
