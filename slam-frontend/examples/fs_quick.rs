@@ -1,9 +1,11 @@
-//! Simulates two laps of a random track and prints the scores.
+//! Simulates two laps of a random track (or a track file) and prints the
+//! scores; the front end assumes the simulated preset's noise.
 //!
-//! `cargo run --release -p cairn-slam --example fs_quick -- [SEED] [METHOD] [TRACK_FILE]`
+//! `cargo run --release -p cairn-slam --example fs_quick -- [SEED] [METHOD] [TRACK_FILE] [PRESET]`
 
 use cairn_slam::Track;
 use cairn_slam::course::Course;
+use cairn_slam::estimator::EstimatorKind;
 use cairn_slam::frontend::FrontEndConfig;
 use cairn_slam::frontend::association::AssociationMethod;
 use cairn_slam::sim::{SimConfig, simulate};
@@ -33,14 +35,11 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         &course,
         &SimConfig {
             seed,
-            preset,
+            preset: preset.clone(),
             ..SimConfig::default()
         },
     );
-    let config = FrontEndConfig {
-        association: method,
-        ..FrontEndConfig::default()
-    };
+    let config = FrontEndConfig::for_preset(&preset, method, EstimatorKind::Graph);
     let (slam, report) = cairn_slam::run::run_and_score(&sim, config);
     println!(
         "{} ({:.0} m): closures {} mode {:?}\n{}",

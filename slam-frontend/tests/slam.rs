@@ -394,8 +394,9 @@ fn a_saved_map_localises_a_new_run_from_an_unknown_start() {
     assert_eq!(slam.map().len(), sim.truth_map.len());
 }
 
-/// A run of random track `track` with the `hard` preset, tracking association.
-fn hard_run(track: u64, seed: u64) -> (GraphSlam, cairn_slam::eval::Report) {
+/// A simulated run of random track `track` with the `hard` preset, and the
+/// front end's settings for it (tracking association).
+fn hard_sim(track: u64, seed: u64) -> (Simulation, FrontEndConfig) {
     let (track, course) = random_track(track, &TrackRules::default());
     let preset = Preset::hard();
     let config =
@@ -409,7 +410,7 @@ fn hard_run(track: u64, seed: u64) -> (GraphSlam, cairn_slam::eval::Report) {
             ..SimConfig::default()
         },
     );
-    run_and_score(&sim, config)
+    (sim, config)
 }
 
 #[test]
@@ -419,7 +420,8 @@ fn a_hard_lap_that_maps_the_start_area_again_still_closes() {
     // area a second time and a single scan puts too few detections on the
     // first lap's landmarks. The landmarks of the lap's last 40 m, aligned
     // to those of its start, close the loop.
-    let (slam, report) = hard_run(0, 1);
+    let (sim, config) = hard_sim(0, 1);
+    let (slam, report) = run_and_score(&sim, config);
     println!("{report:?}");
     assert_eq!(slam.loop_closures(), 1);
     assert!(report.ate < 1.0, "{}", report.ate);
@@ -436,25 +438,13 @@ fn the_smoothing_window_learns_the_yaw_rate_bias_while_mapping() {
     // window beside the poses, the bias is known to about 0.001 rad/s after
     // 40 s of the first lap (the per-scan heading residual it replaced:
     // 0.0019 rad/s rms on 15 tracks × 3 seeds).
-    let preset = Preset::hard();
-    let truth = preset.odometry.yaw_rate_bias;
+    let truth = Preset::hard().odometry.yaw_rate_bias;
     let mut squares = 0.0;
     let mut runs = 0;
     for track_seed in 0..3 {
-        let (track, course) = random_track(track_seed, &TrackRules::default());
         for seed in 0..2 {
-            let config = SimConfig {
-                seed,
-                preset: preset.clone(),
-                ..SimConfig::default()
-            };
-            let sim = simulate(&track, &course, &config);
-            let front_end = FrontEndConfig::for_preset(
-                &preset,
-                AssociationMethod::Tracking,
-                EstimatorKind::Graph,
-            );
-            let mut slam = GraphSlam::new(front_end);
+            let (sim, config) = hard_sim(track_seed, seed);
+            let mut slam = GraphSlam::new(config);
             for r in &sim.log {
                 if matches!(r, Record::Cones { t, .. } if *t > 40.0) {
                     break;
@@ -506,19 +496,7 @@ fn the_end_of_the_run_matches_what_the_real_time_gates_left_unmatched() {
     // gate and the new-landmark gate in real time; from the optimised poses
     // most of them match.
     for (track, seed) in [(2, 0), (2, 1), (1, 1)] {
-        let (track_cones, course) = random_track(track, &TrackRules::default());
-        let preset = Preset::hard();
-        let sim = simulate(
-            &track_cones,
-            &course,
-            &SimConfig {
-                seed,
-                preset: preset.clone(),
-                ..SimConfig::default()
-            },
-        );
-        let config =
-            FrontEndConfig::for_preset(&preset, AssociationMethod::Tracking, EstimatorKind::Graph);
+        let (sim, config) = hard_sim(track, seed);
         let mut slam = GraphSlam::new(config);
         for r in &sim.log {
             slam.process(r);
