@@ -375,7 +375,7 @@ impl GraphSlam {
         }
         self.near_start_scans.push(loop_closure::PendingScan {
             keyframe,
-            first: self.detections.len() - cones.len(),
+            first,
             cones: cones.to_vec(),
         });
         // One closure per lap, when mapping goes on after the first.
