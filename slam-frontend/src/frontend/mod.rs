@@ -5,6 +5,7 @@
 
 pub(crate) mod align;
 pub mod association;
+mod bias;
 mod calibration;
 mod config;
 mod edges;

@@ -16,7 +16,7 @@
 //! where the bias was learnt a little wrong, and the map turned with the car
 //! (0.6° over 300 m of straight corridor).
 
-use super::optimise::{OdometryBias, PoseBias};
+use super::bias::{OdometryBias, PoseBias};
 use super::{GraphSlam, Observation};
 use cairn_core::{BinaryEdge, EdgeSE2XY, SE2, Variable};
 use nalgebra::{DMatrix, DVector, Matrix2, Matrix3, SMatrix, Vector2, Vector3};
