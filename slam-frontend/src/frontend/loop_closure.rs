@@ -60,12 +60,9 @@ impl GraphSlam {
         let reach = self.config.max_range + 5.0;
         let old: Vec<usize> = (0..self.landmarks.len())
             .filter(|&l| {
-                let lm = &self.landmarks[l];
-                self.alias[l] == l
-                    && lm.sighting.confirmed
-                    && !lm.removed
+                self.in_map(l)
                     && self.awaits_loop_closure(l)
-                    && (lm.mean - self.pose.t).norm() < reach
+                    && (self.landmarks[l].mean - self.pose.t).norm() < reach
             })
             .collect();
         let map: Vec<(Vector2<f64>, Color)> = old
@@ -142,9 +139,7 @@ impl GraphSlam {
         (0..self.landmarks.len())
             .filter(|&l| {
                 let lm = &self.landmarks[l];
-                self.alias[l] == l
-                    && lm.sighting.confirmed
-                    && !lm.removed
+                self.in_map(l)
                     && lm.sighting.created_distance >= START_AREA
                     && distance - lm.sighting.created_distance < RECENT
                     && (lm.mean - self.pose.t).norm() < reach

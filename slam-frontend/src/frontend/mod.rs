@@ -517,14 +517,17 @@ impl GraphSlam {
         (SE2::from_vector(&x), 0.5 * (cov + cov.transpose()))
     }
 
+    /// Whether landmark `l` is part of the map: confirmed, not removed and
+    /// not merged into another.
+    fn in_map(&self, l: usize) -> bool {
+        let lm = &self.landmarks[l];
+        self.alias[l] == l && !lm.removed && lm.sighting.confirmed
+    }
+
     /// The landmarks of the map, in output order, with their internal indices.
     fn map_rows(&self) -> Vec<usize> {
         (0..self.landmarks.len())
-            .filter(|&l| {
-                self.alias[l] == l
-                    && !self.landmarks[l].removed
-                    && self.landmarks[l].sighting.confirmed
-            })
+            .filter(|&l| self.in_map(l))
             .collect()
     }
 

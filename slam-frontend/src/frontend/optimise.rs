@@ -50,8 +50,7 @@ impl GraphSlam {
             }
             let mut vertex = vec![None; self.landmarks.len()];
             for (l, lm) in self.landmarks.iter().enumerate() {
-                let live = lm.sighting.confirmed && !lm.removed && self.alias[l] == l;
-                if !live || by_landmark[l].is_empty() {
+                if !self.in_map(l) || by_landmark[l].is_empty() {
                     continue;
                 }
                 let v = (n + l) as i64;
@@ -107,13 +106,7 @@ impl GraphSlam {
     /// (typically once per lap before the loop closed), unless one scan saw
     /// both: then they are two cones, like the start's big orange pairs.
     fn merge_duplicates(&mut self) {
-        let live: Vec<usize> = (0..self.landmarks.len())
-            .filter(|&l| {
-                self.alias[l] == l
-                    && !self.landmarks[l].removed
-                    && self.landmarks[l].sighting.confirmed
-            })
-            .collect();
+        let live = self.map_rows();
         let points: Vec<(usize, Vector2<f64>)> =
             live.iter().map(|&l| (l, self.landmarks[l].mean)).collect();
         let close: Vec<(usize, usize)> = pairs_within(&points, MERGE_RADIUS)

@@ -89,10 +89,9 @@ pub(super) struct Window {
 impl Window {
     /// A window whose bias prior is N(0, `sigma`²).
     pub(super) fn new(sigma: f64) -> Self {
-        Self {
-            bias_info: 1.0 / (sigma * sigma).max(1e-18),
-            ..Self::default()
-        }
+        let mut window = Self::default();
+        window.set_bias(0.0, sigma);
+        window
     }
 
     /// Restarts the bias prior at what a full optimisation found: `bias`,
