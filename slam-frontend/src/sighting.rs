@@ -21,6 +21,11 @@ const JUDGE_AFTER: u32 = 6;
 /// Log odds from which a landmark's colours call it clutter (20 : 1).
 const CLUTTER_LOG_ODDS: f64 = 6.0;
 
+/// How often an object that is not a cone is detected while well in view:
+/// about as often as not, against a cone's `detection_probability` (the
+/// simulator detects its clutter objects in 30% of the scans).
+const CLUTTER_DETECTION: f64 = 0.5;
+
 /// Where a landmark stands relative to the car's view.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum View {
@@ -189,6 +194,22 @@ impl Sighting {
         self.seen >= JUDGE_AFTER && self.clutter_log_odds(config) >= CLUTTER_LOG_ODDS
     }
 
+    /// Whether colours and detections together say clutter, for a
+    /// judgement on the whole run when the poses are final: the colours
+    /// lean to clutter, and their log odds plus those of being detected in
+    /// `hits` and missed in `misses` of the scans that had it well in view
+    /// reach [`CLUTTER_LOG_ODDS`]. Misses alone never decide: a cone mapped
+    /// twice shares its detections between the two (the hairpins track,
+    /// 40 of 110 scans each), and a real detector misses occluded cones.
+    pub fn is_clutter(&self, hits: u32, misses: u32, config: &FrontEndConfig) -> bool {
+        let colour = self.clutter_log_odds(config);
+        let p = config.detection_probability.clamp(0.6, 0.999);
+        let q = CLUTTER_DETECTION;
+        let detection =
+            f64::from(hits) * (q / p).ln() + f64::from(misses) * ((1.0 - q) / (1.0 - p)).ln();
+        colour > 0.0 && colour + detection >= CLUTTER_LOG_ODDS
+    }
+
     /// Updates the counts and the view after a scan: `visible` says whether
     /// the landmark should have been seen, `associated` whether it was.
     /// Returns whether it should be dropped while mapping: missed more often
@@ -264,5 +285,38 @@ mod tests {
         // Dropped only while mapping.
         assert!(clutter.after_scan(&config, false, false, true, 30, 0.0));
         assert!(!clutter.after_scan(&config, false, false, false, 31, 0.0));
+    }
+
+    #[test]
+    fn misses_tip_a_landmark_whose_colours_lean_to_clutter_but_never_decide_alone() {
+        let config = FrontEndConfig::default();
+        let mut rare = Sighting::new(Color::Blue, 0, 0.0, 0.0);
+        for read in [Color::Blue, Color::Unknown, Color::Yellow, Color::Blue] {
+            rare.count(read, 3);
+        }
+        // Too few sightings for the colours alone, and they alone are not enough.
+        assert!(!rare.looks_like_clutter(&config));
+        assert!(!rare.is_clutter(4, 0, &config));
+        // Seen in 4 of the 14 scans that had it in view: clutter.
+        assert!(rare.is_clutter(4, 10, &config));
+        // A cone mapped twice sees half its detections go to the twin; a
+        // cone seen rarely but always in its colour stays too.
+        let mut cone = Sighting::new(Color::Yellow, 0, 0.0, 0.0);
+        for k in 0..40 {
+            cone.count(
+                if k % 10 == 3 {
+                    Color::Unknown
+                } else {
+                    Color::Yellow
+                },
+                3,
+            );
+        }
+        assert!(!cone.is_clutter(40, 70, &config));
+        let mut faint = Sighting::new(Color::Blue, 0, 0.0, 0.0);
+        for _ in 0..4 {
+            faint.count(Color::Blue, 3);
+        }
+        assert!(!faint.is_clutter(4, 30, &config));
     }
 }

@@ -49,6 +49,9 @@ pub struct FrontEndConfig {
     pub color_wrong: f64,
     /// See `color_wrong`.
     pub color_unknown: f64,
+    /// How often the detector sees a cone that is well inside its view:
+    /// objects seen far less often are clutter.
+    pub detection_probability: f64,
     /// Sightings before a tentative landmark joins the map.
     pub confirm_after: u32,
     /// Landmarks that return after leaving the view, needed in one scan to
@@ -78,6 +81,7 @@ impl Default for FrontEndConfig {
             color_penalty: 6.0,
             color_wrong: 0.02,
             color_unknown: 0.05,
+            detection_probability: 0.9,
             confirm_after: 3,
             loop_min_returned: 4,
             localise_after_loop: true,
@@ -117,6 +121,7 @@ impl FrontEndConfig {
                 9.21
             },
             color_unknown: s.unknown_color,
+            detection_probability: s.detection_probability,
             ..FrontEndConfig::default()
         }
     }

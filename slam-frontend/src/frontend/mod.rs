@@ -216,6 +216,7 @@ impl GraphSlam {
         let scans = std::mem::take(&mut self.unsettled);
         self.match_again(&scans, self.config.gate.max(FINAL_GATE));
         let result = self.optimise(optimise::Batch::last());
+        self.drop_clutter();
         self.timing.final_optimisation = Some(start.elapsed().as_secs_f64());
         result
     }
@@ -343,6 +344,11 @@ impl GraphSlam {
             }
             if self.mode == Mode::Mapping {
                 self.refine(l, &pose, &pose_cov, d, &covs[i]);
+            } else {
+                // The later laps' colours judge clutter seen too few times
+                // to judge while mapping.
+                let confirm = self.config.confirm_after;
+                self.landmarks[l].sighting.count(d.color, confirm);
             }
             let (distance, heading) = (self.motion.distance(), self.pose.theta);
             if self.landmarks[l].sighting.revisit(scan, distance, heading) {
