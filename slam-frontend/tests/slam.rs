@@ -552,3 +552,23 @@ fn clutter_objects_beside_the_track_leave_the_map_at_the_end() {
     assert!(phantoms <= 5, "{phantoms} phantom landmarks in 3 runs");
     assert!(accuracy > 0.995, "association accuracy {accuracy}");
 }
+
+#[test]
+fn the_start_area_is_not_missed_while_it_waits_for_the_loop_to_close() {
+    // Back near the start, the gates leave the first lap's start-area
+    // landmarks out until place recognition closes the loop. Counted as
+    // misses meanwhile, they removed the start's cones seen fewer than ten
+    // times; with them gone, random track 0 `hard` seeds 0 and 3 never
+    // closed (association 72% and 65%).
+    for seed in [0, 3] {
+        let (sim, config) = hard_sim(0, seed);
+        let (slam, report) = run_and_score(&sim, config);
+        println!("seed {seed}: {report:?}");
+        assert_eq!(slam.loop_closures(), 1, "seed {seed}");
+        assert!(
+            report.association_accuracy > 0.98,
+            "seed {seed}: {}",
+            report.association_accuracy
+        );
+    }
+}

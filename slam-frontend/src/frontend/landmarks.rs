@@ -138,16 +138,21 @@ impl GraphSlam {
         let inverse = pose.inverse();
         let mapping = self.mode == Mode::Mapping;
         let distance = self.motion.distance();
-        let config = &self.config;
-        for (l, lm) in self.landmarks.iter_mut().enumerate() {
-            if lm.removed || self.alias[l] != l {
+        let closing = self.back_at_start(pose);
+        for l in 0..self.landmarks.len() {
+            if self.landmarks[l].removed || self.alias[l] != l {
                 continue;
             }
-            let visible = in_view(config, &inverse, &lm.mean);
+            // The gates leave the start area out until the loop closes, so
+            // it cannot be missed meanwhile: counted, the misses removed
+            // a big orange cone seen only six times on the way out.
+            let gated = !(closing && self.awaits_loop_closure(l));
+            let lm = &mut self.landmarks[l];
+            let visible = gated && in_view(&self.config, &inverse, &lm.mean);
             let seen = associated.get(l).copied().unwrap_or(false);
             if lm
                 .sighting
-                .after_scan(config, visible, seen, mapping, scan, distance)
+                .after_scan(&self.config, visible, seen, mapping, scan, distance)
             {
                 lm.removed = true;
             }

@@ -6,7 +6,8 @@ use super::association::{AssociationMethod, associate, through_pose};
 use super::{GraphSlam, Mode, Observation, align, chi2_99, nearest_information};
 use crate::color::Color;
 use crate::log::Detection;
-use crate::sighting::{START_AREA, View};
+use crate::sighting::{START_AREA, View, near_start};
+use cairn_core::SE2;
 use nalgebra::{Matrix2, Matrix3, Vector2};
 use std::time::Instant;
 
@@ -29,6 +30,13 @@ impl GraphSlam {
         self.landmarks[l]
             .sighting
             .is_start_area(self.motion.distance(), self.pose.theta)
+    }
+
+    /// Whether `pose` is back where the run began.
+    pub(super) fn back_at_start(&self, pose: &SE2) -> bool {
+        self.poses
+            .first()
+            .is_some_and(|p| near_start(&p.pose, pose))
     }
 
     /// Whether landmark `l` is a start-area landmark waiting for the lap to

@@ -21,7 +21,7 @@ pub(crate) use optimise::MERGE_RADIUS;
 use crate::files::{Association, StampedPose};
 use crate::log::{Detection, Record};
 use crate::motion::{Odometry, compose_with_cov};
-use crate::sighting::{MIN_LOOP, Sighting, near_start};
+use crate::sighting::{MIN_LOOP, Sighting};
 use crate::track::Cone;
 use association::{Candidates, Pair, associate, through_pose};
 use cairn_core::SE2;
@@ -372,11 +372,7 @@ impl GraphSlam {
         self.count_misses(&pose, &associated, scan);
         // A lap ends near where it began; a parallel stretch of track that
         // passes the start area elsewhere must not count.
-        let near_start = self
-            .poses
-            .first()
-            .is_some_and(|p| near_start(&p.pose, &pose));
-        if !near_start {
+        if !self.back_at_start(&pose) {
             self.near_start_scans.clear();
             return;
         }
@@ -413,10 +409,7 @@ impl GraphSlam {
         let reach = self.config.max_range + 5.0;
         // Back at the start, the start area's landmarks are matched only
         // through place recognition ([`Self::awaits_loop_closure`]).
-        let closing = self
-            .poses
-            .first()
-            .is_some_and(|p| near_start(&p.pose, pose));
+        let closing = self.back_at_start(pose);
         let nearby: Vec<usize> = (0..self.landmarks.len())
             .filter(|&l| {
                 let lm = &self.landmarks[l];
