@@ -4,7 +4,7 @@
 
 use super::bias::{OdometryBias, PoseBias, SightingBias, StartPrior};
 use super::{GraphSlam, Observation, OdometryEdge, OptimiseError};
-use cairn_core::{EdgeSE2XY, Graph, SE2};
+use cairn_core::{EdgeSE2XY, Graph, RobustKernel, SE2};
 use cairn_solvers::{Optimizer, SolverConfig};
 use nalgebra::Vector2;
 use std::collections::HashMap;
@@ -58,7 +58,10 @@ impl GraphSlam {
                 graph.add_vertex(v, lm.mean)?;
                 for o in spread(&by_landmark[l], batch.sightings) {
                     let edge = SightingBias(EdgeSE2XY::new(o.z));
-                    graph.add_edge(o.pose as i64, v, edge, o.information)?;
+                    let e = graph.add_edge(o.pose as i64, v, edge, o.information)?;
+                    if batch.robust {
+                        graph.set_robust_kernel(e, Some(RobustKernel::Cauchy(CAUCHY_DELTA)));
+                    }
                 }
             }
             Ok(vertex)
@@ -226,7 +229,18 @@ pub(super) struct Batch {
     /// Iterations, at most, when the first moved the last pose by more
     /// than [`FAR`].
     pub far_iterations: usize,
+    /// Sightings under a Cauchy kernel, so that the few wrong associations
+    /// pull less. Only once the map holds together: at a loop closure the
+    /// large residuals are the lap's drift, which the kernel would keep.
+    pub robust: bool,
 }
+
+/// The Cauchy kernel's δ on the sightings' √χ²: √5.99, the 95% quantile of
+/// χ² with 2 degrees of freedom. On 15 tracks × 10 seeds (final map RMSE)
+/// it took `hard` from 0.201 to 0.163 m and `standard` from 0.078 to
+/// 0.076 m; Huber gave 0.175 and 0.077 m, and a Cauchy kernel at the loop
+/// closure too lost association (98.19% → 96.61% on `hard`).
+const CAUCHY_DELTA: f64 = 2.45;
 
 /// How far (m, rad) the first iteration must move the last pose for the
 /// optimisation to go on to [`Batch::far_iterations`].
@@ -254,16 +268,18 @@ impl Batch {
             sightings: MAX_SIGHTINGS,
             iterations: 1,
             far_iterations: 10,
+            robust: false,
         }
     }
 
-    /// At the end of the run: everything.
+    /// At the end of the run: everything, the sightings robust.
     pub fn last() -> Self {
         Self {
             stride: 1,
             sightings: usize::MAX,
             iterations: 10,
             far_iterations: 10,
+            robust: true,
         }
     }
 }
