@@ -376,8 +376,9 @@ fn comparison(md: &mut String, runs: &[Run]) {
          - The `hard` preset (mean ATE {:.1}–{:.1} m across estimators and methods): odometry \
          biases of 3% and 0.01 rad/s drift the car metres off before the lap ends, beyond the \
          gates. The graph estimates the gyro bias in its smoothing window and recognises the \
-         start by aligning the landmarks of the lap's end to it, so it closes most laps; the \
-         filters align one scan and lose more.\n",
+         start by aligning the landmarks of the lap's end to it, so it closes most laps, and \
+         its final optimisation weighs the sightings under a Cauchy kernel so the few wrong \
+         matches pull less; the filters align one scan and lose more.\n",
         if ordered { "holds" } else { "does not hold" },
         if methods_ordered {
             "holds"
