@@ -1,0 +1,158 @@
+//! The `hard` preset: 2° bearings, a false positive per scan, odometry
+//! biases that drift a lap metres off. Runs on random tracks, so they need
+//! nothing from `../shared`.
+
+use cairn_slam::estimator::EstimatorKind;
+use cairn_slam::eval::association_accuracy;
+use cairn_slam::frontend::association::AssociationMethod;
+use cairn_slam::frontend::{FrontEndConfig, GraphSlam};
+use cairn_slam::log::Record;
+use cairn_slam::run::run_and_score;
+use cairn_slam::sim::{Preset, SimConfig, Simulation, simulate};
+use cairn_slam::trackgen::{TrackRules, random_track};
+
+/// A simulated run of random track `track` with the `hard` preset, and the
+/// front end's settings for it (tracking association).
+fn hard_sim(track: u64, seed: u64) -> (Simulation, FrontEndConfig) {
+    let (track, course) = random_track(track, &TrackRules::default());
+    let preset = Preset::hard();
+    let config =
+        FrontEndConfig::for_preset(&preset, AssociationMethod::Tracking, EstimatorKind::Graph);
+    let sim = simulate(
+        &track,
+        &course,
+        &SimConfig {
+            seed,
+            preset,
+            ..SimConfig::default()
+        },
+    );
+    (sim, config)
+}
+
+#[test]
+fn a_hard_lap_that_maps_the_start_area_again_still_closes() {
+    // Random track 0, `hard` seed 1: the first lap ends 5.5 m along the
+    // track and 5° off, about one cone spacing, so the gates map the start
+    // area a second time and a single scan puts too few detections on the
+    // first lap's landmarks. The landmarks of the lap's last 40 m, aligned
+    // to those of its start, close the loop.
+    let (sim, config) = hard_sim(0, 1);
+    let (slam, report) = run_and_score(&sim, config);
+    println!("{report:?}");
+    assert_eq!(slam.loop_closures(), 1);
+    assert!(report.ate < 1.0, "{}", report.ate);
+    assert!(
+        report.association_accuracy > 0.95,
+        "{}",
+        report.association_accuracy
+    );
+}
+
+#[test]
+fn the_smoothing_window_learns_the_yaw_rate_bias_while_mapping() {
+    // The `hard` preset's gyro reads 0.01 rad/s high. Estimated in the
+    // window beside the poses, the bias is known to about 0.001 rad/s after
+    // 40 s of the first lap (the per-scan heading residual it replaced:
+    // 0.0019 rad/s rms on 15 tracks × 3 seeds).
+    let truth = Preset::hard().odometry.yaw_rate_bias;
+    let mut squares = 0.0;
+    let mut runs = 0;
+    for track_seed in 0..3 {
+        for seed in 0..2 {
+            let (sim, config) = hard_sim(track_seed, seed);
+            let mut slam = GraphSlam::new(config);
+            for r in &sim.log {
+                if matches!(r, Record::Cones { t, .. } if *t > 40.0) {
+                    break;
+                }
+                slam.process(r);
+            }
+            let online = slam.calibration().yaw_rate_bias;
+            println!("track {track_seed} seed {seed}: {online}");
+            assert_eq!(slam.loop_closures(), 0);
+            assert!(
+                (online - truth).abs() < 0.002,
+                "track {track_seed} seed {seed}: {online}"
+            );
+            squares += (online - truth).powi(2);
+            runs += 1;
+        }
+    }
+    let rms = (squares / runs as f64).sqrt();
+    assert!(rms < 0.0012, "{rms}");
+}
+
+#[test]
+fn the_end_of_the_run_matches_what_the_real_time_gates_left_unmatched() {
+    // The `hard` preset's 2° bearings leave far detections between the 99%
+    // gate and the new-landmark gate in real time; from the optimised poses
+    // most of them match.
+    for (track, seed) in [(2, 0), (2, 1), (1, 1)] {
+        let (sim, config) = hard_sim(track, seed);
+        let mut slam = GraphSlam::new(config);
+        for r in &sim.log {
+            slam.process(r);
+        }
+        let (real_time, _) = association_accuracy(&sim.truth_associations, &slam.associations());
+        slam.finish().unwrap();
+        let (last, _) = association_accuracy(&sim.truth_associations, &slam.associations());
+        println!("track {track} seed {seed}: {real_time} → {last}");
+        assert_eq!(slam.loop_closures(), 1);
+        assert!(last > real_time + 0.008, "{real_time} → {last}");
+        assert!(last > 0.97, "{last}");
+    }
+}
+
+#[test]
+fn the_start_area_is_not_missed_while_it_waits_for_the_loop_to_close() {
+    // Back near the start, the gates leave the first lap's start-area
+    // landmarks out until place recognition closes the loop. Counted as
+    // misses meanwhile, they removed the start's cones seen fewer than ten
+    // times; with them gone, random track 0 `hard` seeds 0 and 3 never
+    // closed (association 72% and 65%).
+    for seed in [0, 3] {
+        let (sim, config) = hard_sim(0, seed);
+        let (slam, report) = run_and_score(&sim, config);
+        println!("seed {seed}: {report:?}");
+        assert_eq!(slam.loop_closures(), 1, "seed {seed}");
+        assert!(
+            report.association_accuracy > 0.98,
+            "seed {seed}: {}",
+            report.association_accuracy
+        );
+    }
+}
+
+#[test]
+fn a_loop_closure_far_from_the_optimum_iterates_until_it_converges() {
+    // Random track 1, `hard` seed 7: the first lap ends 6 m and 2.5° off.
+    // One Gauss–Newton step from there left the car 2 m off on the closed
+    // map, and the second lap localised on a bent map (association 58%).
+    let (sim, config) = hard_sim(1, 7);
+    let (slam, report) = run_and_score(&sim, config);
+    println!("{report:?}");
+    assert_eq!(slam.loop_closures(), 1);
+    assert!(
+        report.association_accuracy > 0.95,
+        "{}",
+        report.association_accuracy
+    );
+}
+
+#[test]
+fn wrong_sightings_do_not_bend_the_final_map() {
+    // Random track 1, `hard` seeds 1, 5 and 6: a few percent of the
+    // detections are matched to the wrong cone, some at the start line
+    // where the loop joins. Weighed like the rest, they bent the final map
+    // (RMSE 0.60, 0.66, 0.79 m; ATE 1.1–1.5 m); under the Cauchy kernel
+    // 0.39–0.43 m and 0.39–0.50 m.
+    for seed in [1, 5, 6] {
+        let (sim, config) = hard_sim(1, seed);
+        let (slam, report) = run_and_score(&sim, config);
+        println!("seed {seed}: {report:?}");
+        assert_eq!(slam.loop_closures(), 1, "seed {seed}");
+        assert!(report.map_rmse < 0.5, "seed {seed}: {}", report.map_rmse);
+        assert!(report.ate < 0.7, "seed {seed}: {}", report.ate);
+    }
+}
