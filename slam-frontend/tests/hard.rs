@@ -3,7 +3,7 @@
 //! nothing from `../shared`.
 
 use cairn_slam::estimator::EstimatorKind;
-use cairn_slam::eval::association_accuracy;
+use cairn_slam::eval::{Report, association_accuracy};
 use cairn_slam::frontend::association::AssociationMethod;
 use cairn_slam::frontend::{FrontEndConfig, GraphSlam};
 use cairn_slam::log::Record;
@@ -30,6 +30,16 @@ fn hard_sim(track: u64, seed: u64) -> (Simulation, FrontEndConfig) {
     (sim, config)
 }
 
+/// Runs random track `track` with `hard` seed `seed`, prints the report and
+/// checks that the loop closed once.
+fn closed_hard_run(track: u64, seed: u64) -> Report {
+    let (sim, config) = hard_sim(track, seed);
+    let (slam, report) = run_and_score(&sim, config);
+    println!("track {track} seed {seed}: {report:?}");
+    assert_eq!(slam.loop_closures(), 1, "track {track} seed {seed}");
+    report
+}
+
 #[test]
 fn a_hard_lap_that_maps_the_start_area_again_still_closes() {
     // Random track 0, `hard` seed 1: the first lap ends 5.5 m along the
@@ -37,10 +47,7 @@ fn a_hard_lap_that_maps_the_start_area_again_still_closes() {
     // area a second time and a single scan puts too few detections on the
     // first lap's landmarks. The landmarks of the lap's last 40 m, aligned
     // to those of its start, close the loop.
-    let (sim, config) = hard_sim(0, 1);
-    let (slam, report) = run_and_score(&sim, config);
-    println!("{report:?}");
-    assert_eq!(slam.loop_closures(), 1);
+    let report = closed_hard_run(0, 1);
     assert!(report.ate < 1.0, "{}", report.ate);
     assert!(
         report.association_accuracy > 0.95,
@@ -112,10 +119,7 @@ fn the_start_area_is_not_missed_while_it_waits_for_the_loop_to_close() {
     // times; with them gone, random track 0 `hard` seeds 0 and 3 never
     // closed (association 72% and 65%).
     for seed in [0, 3] {
-        let (sim, config) = hard_sim(0, seed);
-        let (slam, report) = run_and_score(&sim, config);
-        println!("seed {seed}: {report:?}");
-        assert_eq!(slam.loop_closures(), 1, "seed {seed}");
+        let report = closed_hard_run(0, seed);
         assert!(
             report.association_accuracy > 0.98,
             "seed {seed}: {}",
@@ -129,10 +133,7 @@ fn a_loop_closure_far_from_the_optimum_iterates_until_it_converges() {
     // Random track 1, `hard` seed 7: the first lap ends 6 m and 2.5° off.
     // One Gauss–Newton step from there left the car 2 m off on the closed
     // map, and the second lap localised on a bent map (association 58%).
-    let (sim, config) = hard_sim(1, 7);
-    let (slam, report) = run_and_score(&sim, config);
-    println!("{report:?}");
-    assert_eq!(slam.loop_closures(), 1);
+    let report = closed_hard_run(1, 7);
     assert!(
         report.association_accuracy > 0.95,
         "{}",
@@ -148,10 +149,7 @@ fn wrong_sightings_do_not_bend_the_final_map() {
     // (RMSE 0.60, 0.66, 0.79 m; ATE 1.1–1.5 m); under the Cauchy kernel
     // 0.39–0.43 m and 0.39–0.50 m.
     for seed in [1, 5, 6] {
-        let (sim, config) = hard_sim(1, seed);
-        let (slam, report) = run_and_score(&sim, config);
-        println!("seed {seed}: {report:?}");
-        assert_eq!(slam.loop_closures(), 1, "seed {seed}");
+        let report = closed_hard_run(1, seed);
         assert!(report.map_rmse < 0.5, "seed {seed}: {}", report.map_rmse);
         assert!(report.ate < 0.7, "seed {seed}: {}", report.ate);
     }

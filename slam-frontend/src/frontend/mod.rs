@@ -201,12 +201,12 @@ impl GraphSlam {
     /// unmatched in real time are matched again from the poses as they now
     /// stand, within the χ² [`FINAL_GATE`] (`hard` preset, 15 tracks × 10
     /// seeds: association 92.9 → 95.3% at a 99.9% gate; `standard` 99.53 →
-    /// 99.56%), landmarks the whole run calls clutter leave the map, and
-    /// every pose and landmark is optimised once more with all sightings,
-    /// the laps driven on the fixed map included: each lap's gyro drift is
-    /// independent, so the laps together pin the map's shape better than
-    /// the first alone (standard preset, 15 tracks × 10 seeds: map RMSE
-    /// 0.126 → 0.081 m). Not real-time: 40–400 ms for two laps, reported
+    /// 99.56%), every pose and landmark is optimised once more with all
+    /// sightings, the laps driven on the fixed map included (each lap's gyro
+    /// drift is independent, so the laps together pin the map's shape better
+    /// than the first alone: standard preset, 15 tracks × 10 seeds, map RMSE
+    /// 0.126 → 0.081 m), and then landmarks the whole run calls clutter
+    /// leave the map. Not real-time: 40–400 ms for two laps, reported
     /// apart from the loop closures ([`Timing::final_optimisation`]). A
     /// failed solve keeps the estimate as it was.
     pub fn finish(&mut self) -> Result<(), OptimiseError> {

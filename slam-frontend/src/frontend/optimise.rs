@@ -79,13 +79,15 @@ impl GraphSlam {
         optimizer.optimize(&mut graph)?;
         // A lap that drifted far is linearised far from its optimum, and one
         // step leaves it short: it goes on to `far_iterations`.
-        let last = graph.value::<PoseBias, 4>(n as i64 - 1)?.pose;
-        let moved = self.poses[n - 1].pose.inverse().compose(&last);
-        if moved.t.norm() > FAR.0 || moved.theta.abs() > FAR.1 {
-            let mut config = *optimizer.config();
-            config.max_iterations = batch.far_iterations.saturating_sub(batch.iterations);
-            optimizer.set_config(config);
-            optimizer.optimize(&mut graph)?;
+        if batch.far_iterations > batch.iterations {
+            let last = graph.value::<PoseBias, 4>(n as i64 - 1)?.pose;
+            let shift = self.poses[n - 1].pose.inverse().compose(&last);
+            if shift.t.norm() > FAR.0 || shift.theta.abs() > FAR.1 {
+                let mut config = *optimizer.config();
+                config.max_iterations = batch.far_iterations - batch.iterations;
+                optimizer.set_config(config);
+                optimizer.optimize(&mut graph)?;
+            }
         }
         // Poses between kept ones move with the kept pose before them.
         let mut moved = SE2::identity();
