@@ -159,23 +159,17 @@ fn schur_order(blocks: Blocks<'_>) -> Result<Vec<usize>, SolveError> {
         .collect())
 }
 
-/// A block order expanded to a scalar permutation (forward, inverse).
-fn expand(order: &[usize], dims: &[usize]) -> (Vec<usize>, Vec<usize>) {
-    let mut start = Vec::with_capacity(dims.len());
-    let mut total = 0;
-    for &d in dims {
-        start.push(total);
-        total += d;
+/// The order of the blocks that `ordering` asks for (block `order[k]` goes
+/// k-th), or the blocks' own order for the orderings that are not by block.
+pub(crate) fn block_order(
+    blocks: Blocks<'_>,
+    ordering: Ordering,
+) -> Result<Vec<usize>, SolveError> {
+    match ordering {
+        Ordering::BlockAmd => amd(blocks.pattern),
+        Ordering::Schur => schur_order(blocks),
+        Ordering::Amd | Ordering::Identity => Ok((0..blocks.dims.len()).collect()),
     }
-    let forward: Vec<usize> = order
-        .iter()
-        .flat_map(|&b| start[b]..start[b] + dims[b])
-        .collect();
-    let mut inverse = vec![0usize; total];
-    for (i, &f) in forward.iter().enumerate() {
-        inverse[f] = i;
-    }
-    (forward, inverse)
 }
 
 /// A sparse Cholesky solver bound to one sparsity pattern.
@@ -197,11 +191,11 @@ impl std::fmt::Debug for SparseCholesky {
 
 impl SparseCholesky {
     /// Symbolic analysis (ordering and elimination structure) of the upper
-    /// triangle `pattern`, whose block structure is `blocks` (the pattern of one
-    /// row and column per vertex, and each vertex's dimension).
+    /// triangle `pattern`. Block orderings are the caller's to apply (by
+    /// numbering the blocks in [`block_order`]); only [`Ordering::Amd`] is
+    /// left to faer.
     pub fn analyze(
         pattern: SymbolicSparseColMatRef<'_, usize>,
-        blocks: Blocks<'_>,
         config: &LinearSolverConfig,
     ) -> Result<Self, SolveError> {
         let threshold = match config.factorization {
@@ -209,18 +203,11 @@ impl SparseCholesky {
             Factorization::Simplicial => SupernodalThreshold::FORCE_SIMPLICIAL,
             Factorization::Supernodal => SupernodalThreshold::FORCE_SUPERNODAL,
         };
-        let block_order = match config.ordering {
-            Ordering::BlockAmd => Some(amd(blocks.pattern)?),
-            Ordering::Schur => Some(schur_order(blocks)?),
-            Ordering::Amd | Ordering::Identity => None,
-        };
-        let block_perm = block_order.map(|order| expand(&order, blocks.dims));
-        let ordering = match (config.ordering, &block_perm) {
-            (_, Some((fwd, inv))) => {
-                SymmetricOrdering::Custom(faer::perm::PermRef::new_checked(fwd, inv, fwd.len()))
+        let ordering = match config.ordering {
+            Ordering::Amd => SymmetricOrdering::Amd,
+            Ordering::BlockAmd | Ordering::Schur | Ordering::Identity => {
+                SymmetricOrdering::Identity
             }
-            (Ordering::Identity, _) => SymmetricOrdering::Identity,
-            _ => SymmetricOrdering::Amd,
         };
         let params = CholeskySymbolicParams {
             supernodal_flop_ratio_threshold: threshold,
@@ -356,9 +343,5 @@ mod tests {
         let mut sorted = order.clone();
         sorted.sort_unstable();
         assert_eq!(sorted, (0..7).collect::<Vec<_>>());
-        let (forward, inverse) = expand(&order, &dims);
-        assert_eq!(forward.len(), 18);
-        assert_eq!(&forward[..2], &[12, 13]);
-        assert!((0..18).all(|i| forward[inverse[i]] == i));
     }
 }

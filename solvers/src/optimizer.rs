@@ -76,11 +76,10 @@ impl Optimizer {
         for &v in &gauge_vertices {
             fixed[v] = true;
         }
-        let structure = HessianStructure::new(graph, &fixed)?;
+        let structure = HessianStructure::new(graph, &fixed, config.linear.ordering)?;
         let cholesky = if structure.dim > 0 {
             Some(SparseCholesky::analyze(
                 structure.pattern.as_ref(),
-                structure.blocks(),
                 &config.linear,
             )?)
         } else {

@@ -7,7 +7,7 @@
 //! for any number of threads.
 
 use crate::SolveError;
-use crate::linear::Blocks;
+use crate::linear::{Blocks, Ordering, block_order};
 use cairn_core::Graph;
 use cairn_core::layout;
 use faer::sparse::SymbolicSparseColMat;
@@ -31,8 +31,6 @@ pub struct HessianStructure {
     pub block_pattern: SymbolicSparseColMat<usize>,
     /// Tangent dimension of each free vertex, in column order.
     pub block_dims: Vec<usize>,
-    /// Whether each free vertex is a pose, in column order.
-    pub block_is_pose: Vec<bool>,
     /// Start of each factor group's region in the linearisation buffer.
     pub group_offset: Vec<usize>,
     /// Length of the linearisation buffer.
@@ -80,21 +78,93 @@ fn group_by_key<T: Copy + Default>(keys: usize, pairs: &[(u32, T)]) -> (Vec<usiz
     (start, items)
 }
 
+/// Each vertex's block index: its position in `free`, `u32::MAX` if fixed.
+fn block_indices(vertices: usize, free: &[usize]) -> Vec<u32> {
+    let mut block_of = vec![u32::MAX; vertices];
+    for (k, &v) in free.iter().enumerate() {
+        block_of[v] = k as u32;
+    }
+    block_of
+}
+
+/// Pattern of the upper block triangle (`col_ptr`, `row_idx`): for each block
+/// column, the block rows that share an edge with it and come no later, sorted.
+fn block_pattern(graph: &Graph, block_of: &[u32]) -> (Vec<usize>, Vec<u32>) {
+    let blocks = block_of.iter().filter(|&&b| b != u32::MAX).count();
+    let mut couplings: Vec<(u32, u32)> = (0..blocks as u32).map(|b| (b, b)).collect();
+    for g in graph.factor_groups() {
+        for i in 0..g.len() {
+            let vs = g.vertices(i);
+            for (p, &a) in vs.iter().enumerate() {
+                for &b in &vs[p + 1..] {
+                    let (ba, bb) = (block_of[a], block_of[b]);
+                    if ba != u32::MAX && bb != u32::MAX {
+                        couplings.push((ba.max(bb), ba.min(bb)));
+                    }
+                }
+            }
+        }
+    }
+    let (mut col_ptr, mut row_idx) = group_by_key(blocks, &couplings);
+    drop(couplings);
+    let mut kept = 0;
+    for c in 0..blocks {
+        let begin = kept;
+        let rows = &mut row_idx[col_ptr[c]..col_ptr[c + 1]];
+        rows.sort_unstable();
+        let mut last = u32::MAX;
+        for k in col_ptr[c]..col_ptr[c + 1] {
+            let r = row_idx[k];
+            if r != last {
+                row_idx[kept] = r;
+                kept += 1;
+                last = r;
+            }
+        }
+        col_ptr[c] = begin;
+    }
+    col_ptr[blocks] = kept;
+    row_idx.truncate(kept);
+    (col_ptr, row_idx)
+}
+
 impl HessianStructure {
     /// Builds the structure; `fixed[v]` holds vertex index v constant.
     ///
     /// Works block by block (one row and column per free vertex); only the
     /// scalar pattern that the Cholesky needs is expanded.
-    pub fn new(graph: &Graph, fixed: &[bool]) -> Result<Self, SolveError> {
+    pub fn new(graph: &Graph, fixed: &[bool], ordering: Ordering) -> Result<Self, SolveError> {
         let n = graph.num_vertices();
         let vdim: Vec<usize> = graph.vertices().map(|v| v.kind.dim).collect();
-        // Free vertices in column order (vertex order), and each one's block index.
-        let free: Vec<usize> = (0..n).filter(|&v| !fixed[v]).collect();
-        let mut block_of = vec![u32::MAX; n];
+        // Free vertices in column order: the fill-reducing block order when
+        // there is one, so that H is assembled already permuted (faer then
+        // factorises it as it is, instead of permuting it every iteration).
+        let mut free: Vec<usize> = (0..n).filter(|&v| !fixed[v]).collect();
+        if matches!(ordering, Ordering::BlockAmd | Ordering::Schur) {
+            let (col_ptr, row_idx) = block_pattern(graph, &block_indices(n, &free));
+            let pattern = SymbolicSparseColMat::new_checked(
+                free.len(),
+                free.len(),
+                col_ptr,
+                None,
+                row_idx.into_iter().map(|r| r as usize).collect(),
+            );
+            let dims: Vec<usize> = free.iter().map(|&v| vdim[v]).collect();
+            let is_pose: Vec<bool> = free.iter().map(|&v| graph.vertex(v).kind.is_pose).collect();
+            let order = block_order(
+                Blocks {
+                    pattern: pattern.as_ref(),
+                    dims: &dims,
+                    is_pose: &is_pose,
+                },
+                ordering,
+            )?;
+            free = order.iter().map(|&k| free[k]).collect();
+        }
+        let block_of = block_indices(n, &free);
         let mut column_of_block = Vec::with_capacity(free.len() + 1);
         let mut dim = 0;
-        for (k, &v) in free.iter().enumerate() {
-            block_of[v] = k as u32;
+        for &v in &free {
             column_of_block.push(dim);
             dim += vdim[v];
         }
@@ -103,43 +173,7 @@ impl HessianStructure {
             .map(|v| (block_of[v] != u32::MAX).then(|| column_of_block[block_of[v] as usize]))
             .collect();
         let blocks = free.len();
-
-        // Block pattern of the upper triangle: for each block column, the block
-        // rows that share an edge with it and come no later, sorted.
-        let mut couplings: Vec<(u32, u32)> = (0..blocks as u32).map(|b| (b, b)).collect();
-        for g in graph.factor_groups() {
-            for i in 0..g.len() {
-                let vs = g.vertices(i);
-                for (p, &a) in vs.iter().enumerate() {
-                    for &b in &vs[p + 1..] {
-                        let (ba, bb) = (block_of[a], block_of[b]);
-                        if ba != u32::MAX && bb != u32::MAX {
-                            couplings.push((ba.max(bb), ba.min(bb)));
-                        }
-                    }
-                }
-            }
-        }
-        let (mut block_col_ptr, mut block_row_idx) = group_by_key(blocks, &couplings);
-        drop(couplings);
-        let mut kept = 0;
-        for c in 0..blocks {
-            let rows = &mut block_row_idx[block_col_ptr[c]..block_col_ptr[c + 1]];
-            rows.sort_unstable();
-            let mut last = u32::MAX;
-            let begin = kept;
-            for k in block_col_ptr[c]..block_col_ptr[c + 1] {
-                let r = block_row_idx[k];
-                if r != last {
-                    block_row_idx[kept] = r;
-                    kept += 1;
-                    last = r;
-                }
-            }
-            block_col_ptr[c] = begin;
-        }
-        block_col_ptr[blocks] = kept;
-        block_row_idx.truncate(kept);
+        let (block_col_ptr, block_row_idx) = block_pattern(graph, &block_of);
         let block_index = |r: u32, c: u32| -> usize {
             let range = block_col_ptr[c as usize]..block_col_ptr[c as usize + 1];
             range.start + block_row_idx[range].binary_search(&r).unwrap_or(0)
@@ -255,7 +289,6 @@ impl HessianStructure {
             pattern,
             block_pattern,
             block_dims: free.iter().map(|&v| vdim[v]).collect(),
-            block_is_pose: free.iter().map(|&v| graph.vertex(v).kind.is_pose).collect(),
             diagonal,
             group_offset,
             buffer_len,
@@ -268,15 +301,6 @@ impl HessianStructure {
             chunks,
             chi2_slots,
         })
-    }
-
-    /// The block structure, for the fill-reducing ordering.
-    pub fn blocks(&self) -> Blocks<'_> {
-        Blocks {
-            pattern: self.block_pattern.as_ref(),
-            dims: &self.block_dims,
-            is_pose: &self.block_is_pose,
-        }
     }
 
     /// Number of stored entries of the upper triangle of H.
@@ -442,13 +466,15 @@ mod tests {
 
     /// H and the gradient assembled from a buffer of random blocks equal the
     /// sums of every edge's blocks at its vertices' columns, on small graphs
-    /// and on graphs large enough to be assembled in several parallel parts.
+    /// and on graphs large enough to be assembled in several parallel parts,
+    /// with the vertices' columns in their own order and in fill-reducing ones.
     #[test]
     fn assembly_matches_a_plain_sum_of_the_edges_blocks() {
         let mut rng = StdRng::seed_from_u64(7);
-        for size in [12; 200].into_iter().chain([3000; 4]) {
+        let orderings = [Ordering::BlockAmd, Ordering::Identity, Ordering::Schur];
+        for (k, size) in [12; 200].into_iter().chain([3000; 4]).enumerate() {
             let (graph, fixed) = random_graph(&mut rng, size);
-            let s = HessianStructure::new(&graph, &fixed).unwrap();
+            let s = HessianStructure::new(&graph, &fixed, orderings[k % 3]).unwrap();
             let mut buffer: Vec<f64> = (0..s.buffer_len).map(|_| rng.random()).collect();
             // Every (row, column) of H, both triangles, and the gradient.
             let mut expected: HashMap<(usize, usize), f64> = HashMap::new();
