@@ -343,7 +343,8 @@ impl Optimizer {
             self.save(graph);
             self.apply_step(graph);
             phases.update += since(t);
-            let new_chi2 = self.linearize(graph, &mut phases);
+            // Assembled below unless this was the last iteration (as LM does).
+            let new_chi2 = self.linearize_edges(graph, &mut phases);
             if !new_chi2.is_finite() {
                 self.restore(graph);
                 self.linearize(graph, &mut phases);
@@ -352,6 +353,12 @@ impl Optimizer {
             let decrease = (chi2 - new_chi2) / chi2;
             chi2 = new_chi2;
             summary.final_chi2 = chi2;
+            let small_step = self.step_is_small(graph);
+            let converged = (0.0..self.config.relative_decrease).contains(&decrease);
+            let last = small_step || converged || iteration + 1 == self.config.max_iterations;
+            if !last {
+                self.assemble(&mut phases);
+            }
             let stats = IterationStats {
                 iteration,
                 chi2,
@@ -362,10 +369,10 @@ impl Optimizer {
                 ..Default::default()
             };
             record(stats, began, start, summary, on_iteration);
-            if self.step_is_small(graph) {
+            if small_step {
                 return Termination::StepSize;
             }
-            if (0.0..self.config.relative_decrease).contains(&decrease) {
+            if converged {
                 return Termination::RelativeDecrease;
             }
         }
