@@ -13,18 +13,21 @@ use faer::sparse::{SparseColMatRef, SymbolicSparseColMat, SymbolicSparseColMatRe
 use faer::{Conj, MatMut, Par, Side};
 use serde::{Deserialize, Serialize};
 
-/// Multiple of faer's flops-per-non-zero threshold above which
-/// [`Factorization::Auto`] goes supernodal. faer's own (1.0) keeps
-/// parking-garage and intel_slamcourse simplicial, where supernodal measured
-/// 1.7× and 1.2× faster; at 0.5 they switch and nothing else does (lower values
-/// switch files where neither wins clearly). See BENCHMARKS.md.
-const AUTO_SUPERNODAL_THRESHOLD: f64 = 0.5;
+/// Multiple of faer's flops-per-non-zero threshold (40) above which
+/// [`Factorization::Auto`] goes supernodal, by measurement (BENCHMARKS.md).
+/// Flops per factor non-zero on the benchmark files: the 2D files 5–13
+/// (simplicial faster: kitti, ais2klinik by 30–45%; dlr at 12.6 by 6%), the
+/// M3500 family 18.8 (supernodal 4–8% faster), parking-garage 27,
+/// intel_slamcourse 31, city10000 42 and the 3D spheres 130 and more
+/// (supernodal 1.3–17× faster). At 0.4 (16) each file gets its faster kind;
+/// faer's own 1.0 (40) keeps parking-garage and intel_slamcourse simplicial.
+const AUTO_SUPERNODAL_THRESHOLD: f64 = 0.4;
 
 /// Which Cholesky variant faer uses.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize, Deserialize)]
 pub enum Factorization {
     /// Chosen from the flop count of the symbolic analysis: supernodal when
-    /// the factor has dense fronts (half faer's own threshold, by measurement).
+    /// the factor has dense fronts (0.4 of faer's own threshold, by measurement).
     #[default]
     Auto,
     /// Column by column; best for very sparse factors.
