@@ -139,7 +139,7 @@ pub fn run(a: ReportArgs) -> Result<(), String> {
          Gauss–Newton step over every 4th pose (with its bias) and the landmarks, 24 sightings \
          each (the poses between follow; the final optimisation refines them all). Every pose \
          and two steps took 160 ms on the 828 m hairpins, whose tight turns let each cone be seen \
-         from far more poses; now about 50 ms there, with the same final map (0.080 m) and \
+         from far more poses; now 35–45 ms there, with the same final map (0.080 m) and \
          association (99.36%). Run alone (1,400 vertices, 15,000 edges): building the graph \
          ~6 ms, structure and symbolic analysis ~15 ms, the step ~25 ms, of which ~17 ms is the \
          numeric factorisation: \
