@@ -16,7 +16,7 @@ use serde::{Deserialize, Serialize};
 /// Multiple of faer's flops-per-non-zero threshold (40) above which
 /// [`Factorization::Auto`] goes supernodal, by measurement (BENCHMARKS.md).
 /// Flops per factor non-zero on the benchmark files: the 2D files 5–13
-/// (simplicial faster: kitti, ais2klinik by 30–45%; dlr at 12.6 by 6%), the
+/// (simplicial faster: kitti, ais2klinik by 30–45%; dlr, 12.6, even), the
 /// M3500 family 18.8 (supernodal 4–8% faster), parking-garage 27,
 /// intel_slamcourse 31, city10000 42 and the 3D spheres 130 and more
 /// (supernodal 1.3–17× faster). At 0.4 (16) each file gets its faster kind;

@@ -129,7 +129,9 @@ fn block_pattern(graph: &Graph, block_of: &[u32]) -> (Vec<usize>, Vec<u32>) {
 }
 
 impl HessianStructure {
-    /// Builds the structure; `fixed[v]` holds vertex index v constant.
+    /// Builds the structure; `fixed[v]` holds vertex index v constant. The
+    /// free vertices take their columns in the block order `ordering` asks
+    /// for (block AMD or Schur; vertex order for the others).
     ///
     /// Works block by block (one row and column per free vertex); only the
     /// scalar pattern that the Cholesky needs is expanded.
