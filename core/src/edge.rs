@@ -26,6 +26,10 @@ pub trait UnaryEdge<const E: usize, const D: usize>: Clone + Send + Sync + 'stat
     }
 }
 
+/// A binary edge's error and its Jacobians with respect to each variable.
+pub type Linearized<const E: usize, const D1: usize, const D2: usize> =
+    (SVector<f64, E>, SMatrix<f64, E, D1>, SMatrix<f64, E, D2>);
+
 /// An edge between two variables.
 pub trait BinaryEdge<const E: usize, const D1: usize, const D2: usize>:
     Clone + Send + Sync + 'static
@@ -47,6 +51,14 @@ pub trait BinaryEdge<const E: usize, const D1: usize, const D2: usize>:
         x2: &Self::V2,
     ) -> (SMatrix<f64, E, D1>, SMatrix<f64, E, D2>) {
         numeric_binary(self, x1, x2)
+    }
+
+    /// The error and both Jacobians, as each iteration needs them. Override
+    /// when the two share work (EDGE_SE2 and EDGE_SE2_XY compute the pose's
+    /// sine and cosine once); the result must equal `error` and `jacobians`.
+    fn linearize(&self, x1: &Self::V1, x2: &Self::V2) -> Linearized<E, D1, D2> {
+        let (j1, j2) = self.jacobians(x1, x2);
+        (self.error(x1, x2), j1, j2)
     }
 
     /// The second variable predicted from the first and the measurement, used by

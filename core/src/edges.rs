@@ -1,7 +1,7 @@
 //! The g2o edge types: EDGE_SE2, EDGE_SE2_XY, EDGE_PRIOR_SE2 and EDGE_SE3:QUAT,
 //! with g2o's error definitions and analytic Jacobians.
 
-use crate::edge::{BinaryEdge, UnaryEdge};
+use crate::edge::{BinaryEdge, Linearized, UnaryEdge};
 use crate::se2::{SE2, normalize_angle};
 use crate::se3::{SE3, canonical, skew};
 use nalgebra::{Matrix2, Matrix3, Matrix6, SMatrix, Vector2, Vector3, Vector6};
@@ -43,23 +43,18 @@ impl EdgeSE2 {
     pub fn measurement(&self) -> &SE2 {
         &self.measurement
     }
-}
 
-impl BinaryEdge<3, 3, 3> for EdgeSE2 {
-    type V1 = SE2;
-    type V2 = SE2;
-    const NAME: &'static str = "EDGE_SE2";
-
-    fn error(&self, xi: &SE2, xj: &SE2) -> Vector3<f64> {
-        // Z⁻¹ · (Xᵢ⁻¹ · Xⱼ), with Z⁻¹'s rotation precomputed.
-        let d = xi.between(xj);
-        let t = self.inverse.t + self.inverse_rotation * d.t;
-        Vector3::new(t.x, t.y, normalize_angle(self.inverse.theta + d.theta))
+    /// Z⁻¹ · (Xᵢ⁻¹ · Xⱼ), with Z⁻¹'s rotation precomputed and θᵢ's (sin, cos) given.
+    fn error_at(&self, sc: (f64, f64), xi: &SE2, xj: &SE2) -> Vector3<f64> {
+        let d = rotation_transpose(sc) * (xj.t - xi.t);
+        let t = self.inverse.t + self.inverse_rotation * d;
+        let theta = normalize_angle(xj.theta - xi.theta);
+        Vector3::new(t.x, t.y, normalize_angle(self.inverse.theta + theta))
     }
 
-    fn jacobians(&self, xi: &SE2, xj: &SE2) -> (Matrix3<f64>, Matrix3<f64>) {
+    /// The Jacobians, with θᵢ's (sin, cos) given.
+    fn jacobians_at(&self, sc: (f64, f64), xi: &SE2, xj: &SE2) -> (Matrix3<f64>, Matrix3<f64>) {
         let rzt = self.measurement_rotation_t;
-        let sc = xi.theta.sin_cos();
         let a = rzt * rotation_transpose(sc);
         let dt = xj.t - xi.t;
         let dth = rzt * d_rotation_transpose(sc) * dt;
@@ -71,6 +66,26 @@ impl BinaryEdge<3, 3, 3> for EdgeSE2 {
         jj.fixed_view_mut::<2, 2>(0, 0).copy_from(&a);
         jj[(2, 2)] = 1.0;
         (ji, jj)
+    }
+}
+
+impl BinaryEdge<3, 3, 3> for EdgeSE2 {
+    type V1 = SE2;
+    type V2 = SE2;
+    const NAME: &'static str = "EDGE_SE2";
+
+    fn error(&self, xi: &SE2, xj: &SE2) -> Vector3<f64> {
+        self.error_at(xi.theta.sin_cos(), xi, xj)
+    }
+
+    fn jacobians(&self, xi: &SE2, xj: &SE2) -> (Matrix3<f64>, Matrix3<f64>) {
+        self.jacobians_at(xi.theta.sin_cos(), xi, xj)
+    }
+
+    fn linearize(&self, xi: &SE2, xj: &SE2) -> Linearized<3, 3, 3> {
+        let sc = xi.theta.sin_cos();
+        let (ji, jj) = self.jacobians_at(sc, xi, xj);
+        (self.error_at(sc, xi, xj), ji, jj)
     }
 
     fn predict_second(&self, xi: &SE2) -> Option<SE2> {
@@ -105,17 +120,23 @@ impl BinaryEdge<2, 3, 2> for EdgeSE2XY {
     const NAME: &'static str = "EDGE_SE2_XY";
 
     fn error(&self, x: &SE2, l: &Vector2<f64>) -> Vector2<f64> {
-        x.rotation().transpose() * (l - x.t) - self.measurement
+        rotation_transpose(x.theta.sin_cos()) * (l - x.t) - self.measurement
     }
 
     fn jacobians(&self, x: &SE2, l: &Vector2<f64>) -> (SMatrix<f64, 2, 3>, Matrix2<f64>) {
+        let (_, jx, jl) = self.linearize(x, l);
+        (jx, jl)
+    }
+
+    fn linearize(&self, x: &SE2, l: &Vector2<f64>) -> Linearized<2, 3, 2> {
         let sc = x.theta.sin_cos();
         let rt = rotation_transpose(sc);
+        let local = l - x.t;
         let mut jx = SMatrix::<f64, 2, 3>::zeros();
         jx.fixed_view_mut::<2, 2>(0, 0).copy_from(&(-rt));
         jx.fixed_view_mut::<2, 1>(0, 2)
-            .copy_from(&(d_rotation_transpose(sc) * (l - x.t)));
-        (jx, rt)
+            .copy_from(&(d_rotation_transpose(sc) * local));
+        (rt * local - self.measurement, jx, rt)
     }
 
     fn predict_second(&self, x: &SE2) -> Option<Vector2<f64>> {

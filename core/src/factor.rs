@@ -301,10 +301,10 @@ impl<T: BinaryEdge<E, D1, D2>, const E: usize, const D1: usize, const D2: usize>
         out.par_chunks_mut(stride)
             .zip(self.entries.par_iter())
             .with_min_len(CHUNK)
-            .enumerate()
-            .for_each(|(i, (slot, en))| {
-                let (x1, x2, e) = self.eval(i, values);
-                let (j1, j2) = en.edge.jacobians(&x1, &x2);
+            .for_each(|(slot, en)| {
+                let x1 = values.get::<T::V1, D1>(en.vertices[0]);
+                let x2 = values.get::<T::V2, D2>(en.vertices[1]);
+                let (e, j1, j2) = en.edge.linearize(&x1, &x2);
                 let (chi2, weight) = en.robust(&e);
                 let oj1 = en.information * j1 * weight;
                 let oj2 = en.information * j2 * weight;

@@ -35,7 +35,7 @@ pub mod topology;
 pub mod values;
 pub mod variable;
 
-pub use edge::{BinaryEdge, UnaryEdge};
+pub use edge::{BinaryEdge, Linearized, UnaryEdge};
 pub use edges::{EdgePriorSE2, EdgeSE2, EdgeSE2XY, EdgeSE3};
 pub use factor::FactorGroup;
 pub use graph::{EdgeView, Graph, GraphError, VariableKind, VertexId, VertexView};

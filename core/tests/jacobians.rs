@@ -62,13 +62,25 @@ fn check_binary<T, const E: usize, const D1: usize, const D2: usize>(
     let (n1, n2) = numeric_binary(edge, x1, x2);
     assert_close(&a1, &n1, T::NAME);
     assert_close(&a2, &n2, T::NAME);
+    // The solver's combined call gives exactly the same numbers.
+    let (e, l1, l2) = edge.linearize(x1, x2);
+    assert_eq!(e, edge.error(x1, x2), "{}: linearize's error", T::NAME);
+    assert_eq!((l1, l2), (a1, a2), "{}: linearize's Jacobians", T::NAME);
 }
 
 #[test]
 fn edge_se2_jacobians() {
     let mut rng = StdRng::seed_from_u64(1);
     for _ in 0..STATES {
-        check_binary(&EdgeSE2::new(se2(&mut rng)), &se2(&mut rng), &se2(&mut rng));
+        let (edge, xi, xj) = (EdgeSE2::new(se2(&mut rng)), se2(&mut rng), se2(&mut rng));
+        check_binary(&edge, &xi, &xj);
+        // g2o's definition: t2v(Z⁻¹ · (Xᵢ⁻¹ · Xⱼ)).
+        let d = edge.measurement().inverse().compose(&xi.between(&xj));
+        let e = edge.error(&xi, &xj);
+        assert!(
+            (e - Vector3::new(d.t.x, d.t.y, d.theta)).amax() < 1e-12,
+            "{e} vs {d:?}"
+        );
     }
 }
 
