@@ -31,6 +31,7 @@ pub mod initialization;
 pub mod linear;
 pub mod marginals;
 pub mod optimizer;
+mod simplicial;
 pub mod structure;
 
 pub use chordal::{ChordalReport, ChordalWeights, chordal_initialize, chordal_initialize_with};

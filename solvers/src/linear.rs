@@ -1,12 +1,15 @@
-//! Sparse Cholesky of the Hessian with faer: symbolic analysis once, numeric
-//! factorisation per iteration into reused buffers.
+//! Sparse Cholesky of the Hessian: symbolic analysis once, numeric
+//! factorisation per iteration into reused buffers. Supernodal factors (and
+//! the scalar AMD ordering) are faer's; simplicial ones are Cairn's
+//! block-aware code (the `simplicial` module).
 
 use crate::SolveError;
+use crate::simplicial::{SimplicialCholesky, SimplicialSymbolic};
 use faer::dyn_stack::{MemBuffer, MemStack, StackReq};
 use faer::linalg::cholesky::llt::factor::{LltError, LltRegularization};
 use faer::sparse::linalg::SupernodalThreshold;
 use faer::sparse::linalg::cholesky::{
-    CholeskySymbolicParams, LltRef, SymbolicCholesky, SymmetricOrdering,
+    CholeskySymbolicParams, LltRef, SymbolicCholesky, SymbolicCholeskyRaw, SymmetricOrdering,
     factorize_symbolic_cholesky,
 };
 use faer::sparse::{SparseColMatRef, SymbolicSparseColMat, SymbolicSparseColMatRef};
@@ -16,23 +19,27 @@ use serde::{Deserialize, Serialize};
 /// Multiple of faer's flops-per-non-zero threshold (40) above which
 /// [`Factorization::Auto`] goes supernodal, by measurement (BENCHMARKS.md).
 /// Flops per factor non-zero on the benchmark files: the 2D files 5–13
-/// (simplicial faster: kitti, ais2klinik by 30–45%; dlr, 12.6, even), the
-/// M3500 family 18.8 (supernodal 4–8% faster), parking-garage 27,
-/// intel_slamcourse 31, city10000 42 and the 3D spheres 130 and more
-/// (supernodal 1.3–17× faster). At 0.4 (16) each file gets its faster kind;
-/// faer's own 1.0 (40) keeps parking-garage and intel_slamcourse simplicial.
+/// (Cairn's simplicial factorisation faster: kitti_00 2.4×, ais2klinik 2×,
+/// dlr, 12.6, by 15%), the M3500 family 18.8 (even: supernodal 0–20%
+/// faster per factorisation), intel_slamcourse 31, parking-garage 27,
+/// city10000 42 and the 3D spheres 130 and more (supernodal 1.5–2.3× faster
+/// and more). At 0.4 (16) each file gets its faster kind.
 const AUTO_SUPERNODAL_THRESHOLD: f64 = 0.4;
 
-/// Which Cholesky variant faer uses.
+/// faer's flops per factor value above which it goes supernodal.
+const FAER_SUPERNODAL_RATIO: f64 = 40.0;
+
+/// Which Cholesky variant factorises H.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize, Deserialize)]
 pub enum Factorization {
     /// Chosen from the flop count of the symbolic analysis: supernodal when
     /// the factor has dense fronts (0.4 of faer's own threshold, by measurement).
     #[default]
     Auto,
-    /// Column by column; best for very sparse factors.
+    /// Column by column (Cairn's, on the vertex blocks; faer's under
+    /// [`Ordering::Amd`]); best for very sparse factors.
     Simplicial,
-    /// Dense blocks of columns; best when the factor has dense fronts.
+    /// Dense blocks of columns (faer's); best when the factor has dense fronts.
     Supernodal,
 }
 
@@ -176,42 +183,87 @@ pub(crate) fn block_order(
 }
 
 /// A sparse Cholesky solver bound to one sparsity pattern.
+#[derive(Debug)]
 pub struct SparseCholesky {
-    symbolic: SymbolicCholesky<usize>,
-    factor: Vec<f64>,
-    scratch: MemBuffer,
-    par: Par,
+    factor: Factor,
     factored: bool,
 }
 
-impl std::fmt::Debug for SparseCholesky {
+/// Cairn's block-aware simplicial factor, or faer's (supernodal, or under
+/// faer's own scalar AMD ordering).
+enum Factor {
+    Simplicial(SimplicialCholesky),
+    Faer {
+        symbolic: SymbolicCholesky<usize>,
+        values: Vec<f64>,
+        scratch: MemBuffer,
+        par: Par,
+    },
+}
+
+impl std::fmt::Debug for Factor {
     fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
-        f.debug_struct("SparseCholesky")
-            .field("factor_len", &self.factor.len())
-            .finish()
+        match self {
+            Self::Simplicial(s) => f.debug_tuple("Simplicial").field(&s.len_val()).finish(),
+            Self::Faer { values, .. } => f.debug_tuple("Faer").field(&values.len()).finish(),
+        }
     }
 }
 
 impl SparseCholesky {
-    /// Symbolic analysis (ordering and elimination structure) of the upper
-    /// triangle `pattern`. Block orderings are the caller's to apply (by
+    /// Symbolic analysis of H, given by its upper triangle `pattern` and the
+    /// upper triangle of its vertex blocks, `block_pattern`, with each
+    /// block's size in `block_dims`. Block orderings are the caller's to apply (by
     /// numbering the blocks in [`block_order`]); only [`Ordering::Amd`] is
-    /// left to faer.
+    /// left to faer. A simplicial factor is Cairn's block-aware one
+    /// (the `simplicial` module), a supernodal one faer's.
     pub fn analyze(
         pattern: SymbolicSparseColMatRef<'_, usize>,
+        block_pattern: SymbolicSparseColMatRef<'_, usize>,
+        block_dims: &[usize],
         config: &LinearSolverConfig,
     ) -> Result<Self, SolveError> {
-        let threshold = match config.factorization {
-            Factorization::Auto => SupernodalThreshold(AUTO_SUPERNODAL_THRESHOLD),
-            Factorization::Simplicial => SupernodalThreshold::FORCE_SIMPLICIAL,
-            Factorization::Supernodal => SupernodalThreshold::FORCE_SUPERNODAL,
-        };
-        let ordering = match config.ordering {
-            Ordering::Amd => SymmetricOrdering::Amd,
-            Ordering::BlockAmd | Ordering::Schur | Ordering::Identity => {
-                SymmetricOrdering::Identity
+        let factor = if config.ordering == Ordering::Amd {
+            let threshold = match config.factorization {
+                Factorization::Auto => SupernodalThreshold(AUTO_SUPERNODAL_THRESHOLD),
+                Factorization::Simplicial => SupernodalThreshold::FORCE_SIMPLICIAL,
+                Factorization::Supernodal => SupernodalThreshold::FORCE_SUPERNODAL,
+            };
+            Self::faer(pattern, SymmetricOrdering::Amd, threshold, config)?
+        } else {
+            let simplicial = match config.factorization {
+                Factorization::Supernodal => None,
+                Factorization::Simplicial => {
+                    Some(SimplicialSymbolic::analyze(block_pattern, block_dims)?)
+                }
+                Factorization::Auto => {
+                    let symbolic = SimplicialSymbolic::analyze(block_pattern, block_dims)?;
+                    let limit = AUTO_SUPERNODAL_THRESHOLD * FAER_SUPERNODAL_RATIO;
+                    (symbolic.flops_per_value() <= limit).then_some(symbolic)
+                }
+            };
+            match simplicial.and_then(SimplicialCholesky::new) {
+                Some(simplicial) => Factor::Simplicial(simplicial),
+                // Supernodal, or too large for Cairn's u32 row indices.
+                None => {
+                    let force = SupernodalThreshold::FORCE_SUPERNODAL;
+                    Self::faer(pattern, SymmetricOrdering::Identity, force, config)?
+                }
             }
         };
+        Ok(Self {
+            factor,
+            factored: false,
+        })
+    }
+
+    /// faer's symbolic analysis and work space.
+    fn faer(
+        pattern: SymbolicSparseColMatRef<'_, usize>,
+        ordering: SymmetricOrdering<'_, usize>,
+        threshold: SupernodalThreshold,
+        config: &LinearSolverConfig,
+    ) -> Result<Factor, SolveError> {
         let params = CholeskySymbolicParams {
             supernodal_flop_ratio_threshold: threshold,
             ..Default::default()
@@ -228,27 +280,26 @@ impl SparseCholesky {
             symbolic.solve_in_place_scratch::<f64>(1, par),
         ]);
         let scratch = MemBuffer::try_new(req).map_err(|_| SolveError::OutOfMemory)?;
-        let factor = vec![0.0; symbolic.len_val()];
-        Ok(Self {
+        Ok(Factor::Faer {
+            values: vec![0.0; symbolic.len_val()],
             symbolic,
-            factor,
             scratch,
             par,
-            factored: false,
         })
     }
 
     /// Whether the factor is supernodal.
     pub fn is_supernodal(&self) -> bool {
-        matches!(
-            self.symbolic.raw(),
-            faer::sparse::linalg::cholesky::SymbolicCholeskyRaw::Supernodal(_)
-        )
+        matches!(&self.factor, Factor::Faer { symbolic, .. }
+            if matches!(symbolic.raw(), SymbolicCholeskyRaw::Supernodal(_)))
     }
 
     /// Number of stored values of the factor L.
     pub fn factor_nnz(&self) -> usize {
-        self.factor.len()
+        match &self.factor {
+            Factor::Simplicial(s) => s.len_val(),
+            Factor::Faer { values, .. } => values.len(),
+        }
     }
 
     /// Numeric factorisation of H given by `pattern` and `values`.
@@ -259,26 +310,36 @@ impl SparseCholesky {
     ) -> Result<(), NotPositiveDefinite> {
         self.factored = false;
         let h = SparseColMatRef::new(pattern, values);
-        let stack = MemStack::new(&mut self.scratch);
-        let regularization = LltRegularization {
-            dynamic_regularization_delta: 0.0,
-            dynamic_regularization_epsilon: 0.0,
-        };
-        match self.symbolic.factorize_numeric_llt(
-            &mut self.factor,
-            h,
-            Side::Upper,
-            regularization,
-            self.par,
-            stack,
-            Default::default(),
-        ) {
-            Ok(_) => {
-                self.factored = true;
-                Ok(())
+        match &mut self.factor {
+            Factor::Simplicial(s) => s.factorize(h)?,
+            Factor::Faer {
+                symbolic,
+                values,
+                scratch,
+                par,
+            } => {
+                let regularization = LltRegularization {
+                    dynamic_regularization_delta: 0.0,
+                    dynamic_regularization_epsilon: 0.0,
+                };
+                let stack = MemStack::new(scratch);
+                symbolic
+                    .factorize_numeric_llt(
+                        values,
+                        h,
+                        Side::Upper,
+                        regularization,
+                        *par,
+                        stack,
+                        Default::default(),
+                    )
+                    .map_err(|LltError::NonPositivePivot { index }| NotPositiveDefinite {
+                        pivot: index,
+                    })?;
             }
-            Err(LltError::NonPositivePivot { index }) => Err(NotPositiveDefinite { pivot: index }),
         }
+        self.factored = true;
+        Ok(())
     }
 
     /// Solves H x = rhs in place with the last successful factorisation.
@@ -287,11 +348,20 @@ impl SparseCholesky {
         if !self.factored {
             return false;
         }
-        let llt = LltRef::new(&self.symbolic, &self.factor);
-        let stack = MemStack::new(&mut self.scratch);
-        let n = rhs.len();
-        let x = MatMut::from_column_major_slice_mut(rhs, n, 1);
-        llt.solve_in_place_with_conj(Conj::No, x, self.par, stack);
+        match &mut self.factor {
+            Factor::Simplicial(s) => s.solve_in_place(rhs),
+            Factor::Faer {
+                symbolic,
+                values,
+                scratch,
+                par,
+            } => {
+                let llt = LltRef::new(symbolic, values);
+                let n = rhs.len();
+                let x = MatMut::from_column_major_slice_mut(rhs, n, 1);
+                llt.solve_in_place_with_conj(Conj::No, x, *par, MemStack::new(scratch));
+            }
+        }
         true
     }
 }

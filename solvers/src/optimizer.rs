@@ -80,6 +80,8 @@ impl Optimizer {
         let cholesky = if structure.dim > 0 {
             Some(SparseCholesky::analyze(
                 structure.pattern.as_ref(),
+                structure.block_pattern.as_ref(),
+                &structure.block_dims,
                 &config.linear,
             )?)
         } else {

@@ -1,0 +1,464 @@
+//! Simplicial (column by column) Cholesky H = LLᵀ that knows H's vertex
+//! blocks. Every block of H is dense, so L's pattern is the block pattern's
+//! fill expanded: the symbolic analysis runs on the vertex graph (a ninth of
+//! the entries of the scalar one for 2D poses), and the numeric factorisation
+//! reads each row's pattern from that analysis instead of searching the
+//! elimination tree for it row by row, as a general sparse code must (a
+//! third of faer's simplicial factorisation time on the 2D benchmark files).
+//!
+//! L is stored as faer stores a simplicial factor: by columns, each
+//! column's diagonal first, then its rows ascending.
+
+use crate::SolveError;
+use crate::linear::NotPositiveDefinite;
+use faer::sparse::{SparseColMatRef, SymbolicSparseColMatRef};
+
+/// The factor's structure from the block analysis, before any values.
+#[derive(Debug)]
+pub struct SimplicialSymbolic {
+    /// For each block row K of L, the block columns J < K with L[K, J] ≠ 0,
+    /// ascending (`row_blocks[row_start[K]..row_start[K + 1]]`).
+    row_start: Vec<usize>,
+    row_blocks: Vec<u32>,
+    /// For each block column J of L, the block rows K > J with L[K, J] ≠ 0,
+    /// ascending (`col_blocks[col_start[J]..col_start[J + 1]]`).
+    col_start: Vec<usize>,
+    col_blocks: Vec<u32>,
+    /// First scalar column of each block, and the dimension at the end.
+    block_column: Vec<usize>,
+    /// Where each scalar column of L starts in the values: its diagonal,
+    /// the rest of its diagonal block, then every row of the blocks below.
+    col_ptr: Vec<usize>,
+}
+
+impl SimplicialSymbolic {
+    /// Elimination tree and fill of the block pattern (Liu's algorithm: the
+    /// blocks that row K of L reaches are those met walking up the tree from
+    /// each block of H's column K). `pattern` is the upper block triangle
+    /// (rows sorted, diagonal included), `dims` each block's size.
+    pub fn analyze(
+        pattern: SymbolicSparseColMatRef<'_, usize>,
+        dims: &[usize],
+    ) -> Result<Self, SolveError> {
+        let nb = dims.len();
+        let mut block_column = Vec::with_capacity(nb + 1);
+        let mut dim = 0usize;
+        for &d in dims {
+            block_column.push(dim);
+            dim += d;
+        }
+        block_column.push(dim);
+        const NONE: usize = usize::MAX;
+        let mut parent = vec![NONE; nb];
+        let mut visited = vec![NONE; nb];
+        let mut row_start = Vec::with_capacity(nb + 1);
+        let mut row_blocks: Vec<u32> = Vec::new();
+        row_start.push(0);
+        for k in 0..nb {
+            visited[k] = k;
+            let begin = row_blocks.len();
+            for &first in pattern.row_idx_of_col_raw(k) {
+                let mut i = first;
+                while i < k && visited[i] != k {
+                    visited[i] = k;
+                    row_blocks.push(i as u32);
+                    if parent[i] == NONE {
+                        parent[i] = k;
+                    }
+                    i = parent[i];
+                }
+            }
+            row_blocks[begin..].sort_unstable();
+            row_start.push(row_blocks.len());
+        }
+        // The block columns: the transpose of the rows, so ascending too.
+        let mut col_start = vec![0usize; nb + 1];
+        for &j in &row_blocks {
+            col_start[j as usize + 1] += 1;
+        }
+        for j in 0..nb {
+            col_start[j + 1] += col_start[j];
+        }
+        let mut fill = col_start.clone();
+        let mut col_blocks = vec![0u32; row_blocks.len()];
+        for k in 0..nb {
+            for &j in &row_blocks[row_start[k]..row_start[k + 1]] {
+                col_blocks[fill[j as usize]] = k as u32;
+                fill[j as usize] += 1;
+            }
+        }
+        let mut col_ptr = Vec::with_capacity(dim + 1);
+        col_ptr.push(0usize);
+        let mut len = 0usize;
+        for j in 0..nb {
+            let below: usize = col_blocks[col_start[j]..col_start[j + 1]]
+                .iter()
+                .map(|&k| dims[k as usize])
+                .sum();
+            for c in 0..dims[j] {
+                len = len
+                    .checked_add(dims[j] - c + below)
+                    .ok_or(SolveError::TooLarge {
+                        entries: usize::MAX,
+                    })?;
+                col_ptr.push(len);
+            }
+        }
+        Ok(Self {
+            row_start,
+            row_blocks,
+            col_start,
+            col_blocks,
+            block_column,
+            col_ptr,
+        })
+    }
+
+    /// Dimension of H.
+    pub fn dim(&self) -> usize {
+        self.col_ptr.len() - 1
+    }
+
+    /// Stored values of L.
+    pub fn len_val(&self) -> usize {
+        self.col_ptr[self.dim()]
+    }
+
+    /// The flops of the factorisation per value of L, counted as faer
+    /// counts them to choose between its simplicial and supernodal codes.
+    pub fn flops_per_value(&self) -> f64 {
+        let flops: f64 = self
+            .col_ptr
+            .windows(2)
+            .map(|w| {
+                let c = (w[1] - w[0]) as f64;
+                c + c * (c + 1.0) / 2.0
+            })
+            .sum();
+        flops / self.len_val().max(1) as f64
+    }
+
+    /// Scalar rows of block `b`.
+    fn rows(&self, b: u32) -> std::ops::Range<usize> {
+        self.block_column[b as usize]..self.block_column[b as usize + 1]
+    }
+
+    /// The blocks below the diagonal block in block column `b`.
+    fn below(&self, b: usize) -> &[u32] {
+        &self.col_blocks[self.col_start[b]..self.col_start[b + 1]]
+    }
+}
+
+/// A simplicial factor: its structure, its values and the work space of the
+/// numeric factorisation.
+#[derive(Debug)]
+pub struct SimplicialCholesky {
+    symbolic: SimplicialSymbolic,
+    /// Row of each value of L.
+    row_idx: Vec<u32>,
+    values: Vec<f64>,
+    /// 1 / L[j, j]: multiplying by it keeps divisions off the dependent
+    /// chains of the factorisation and the solves (as faer does).
+    inverse_diagonal: Vec<f64>,
+    /// Row k of L being formed; all zeros between rows.
+    work: Vec<f64>,
+    /// Position in `values` of the last value written in each column.
+    last: Vec<usize>,
+}
+
+impl SimplicialCholesky {
+    /// Takes the analysis and lays out the factor's rows. `None` if H's
+    /// dimension does not fit the `u32` row indices.
+    pub fn new(symbolic: SimplicialSymbolic) -> Option<Self> {
+        let n = symbolic.dim();
+        u32::try_from(n).ok()?;
+        let mut row_idx: Vec<u32> = Vec::with_capacity(symbolic.len_val());
+        for jb in 0..symbolic.block_column.len() - 1 {
+            let cols = symbolic.rows(jb as u32);
+            for j in cols.clone() {
+                row_idx.extend(j as u32..cols.end as u32);
+                for &ib in symbolic.below(jb) {
+                    let rows = symbolic.rows(ib);
+                    row_idx.extend(rows.start as u32..rows.end as u32);
+                }
+            }
+        }
+        Some(Self {
+            values: vec![0.0; row_idx.len()],
+            row_idx,
+            inverse_diagonal: vec![0.0; n],
+            work: vec![0.0; n],
+            last: vec![0; n],
+            symbolic,
+        })
+    }
+
+    /// Stored values of L.
+    pub fn len_val(&self) -> usize {
+        self.values.len()
+    }
+
+    /// Up-looking factorisation of `h` (the upper triangle, in the pattern
+    /// the analysis was given): row k of L solves a triangular system with
+    /// the rows above it, formed in `work` from column k of H.
+    pub fn factorize(
+        &mut self,
+        h: SparseColMatRef<'_, usize, f64>,
+    ) -> Result<(), NotPositiveDefinite> {
+        let Self {
+            symbolic: s,
+            row_idx,
+            values,
+            inverse_diagonal,
+            work,
+            last,
+        } = self;
+        last.copy_from_slice(&s.col_ptr[..s.dim()]);
+        for kb in 0..s.block_column.len() - 1 {
+            let block = s.rows(kb as u32);
+            let above = &s.row_blocks[s.row_start[kb]..s.row_start[kb + 1]];
+            for k in block.clone() {
+                for (&i, &v) in h.row_idx_of_col_raw(k).iter().zip(h.val_of_col(k)) {
+                    work[i] += v;
+                }
+                let mut d = work[k];
+                work[k] = 0.0;
+                // Row k's columns ascending: the blocks above, then the
+                // diagonal block's columns left of k. Column j's rows above
+                // k are final, and so is work[j] once every column before j
+                // has been subtracted.
+                let columns = above.iter().flat_map(|&j| s.rows(j)).chain(block.start..k);
+                for j in columns {
+                    last[j] += 1;
+                    let (done, next) = values.split_at_mut(last[j]);
+                    let top = s.col_ptr[j];
+                    let lkj = work[j] * inverse_diagonal[j];
+                    work[j] = 0.0;
+                    for (&i, &lij) in row_idx[top + 1..last[j]].iter().zip(&done[top + 1..]) {
+                        work[i as usize] -= lij * lkj;
+                    }
+                    d -= lkj * lkj;
+                    next[0] = lkj;
+                }
+                // Not `d <= 0.0`: a NaN pivot fails too.
+                if d.partial_cmp(&0.0) != Some(std::cmp::Ordering::Greater) {
+                    work.fill(0.0);
+                    return Err(NotPositiveDefinite { pivot: k + 1 });
+                }
+                let diagonal = d.sqrt();
+                values[s.col_ptr[k]] = diagonal;
+                inverse_diagonal[k] = diagonal.recip();
+            }
+        }
+        Ok(())
+    }
+
+    /// Solves LLᵀ x = rhs in place with the last factorisation.
+    pub fn solve_in_place(&self, x: &mut [f64]) {
+        let col_ptr = &self.symbolic.col_ptr;
+        let below = |j: usize| {
+            let range = col_ptr[j] + 1..col_ptr[j + 1];
+            self.row_idx[range.clone()].iter().zip(&self.values[range])
+        };
+        for j in 0..x.len() {
+            let xj = x[j] * self.inverse_diagonal[j];
+            x[j] = xj;
+            for (&i, &lij) in below(j) {
+                x[i as usize] -= lij * xj;
+            }
+        }
+        for j in (0..x.len()).rev() {
+            let mut xj = x[j];
+            for (&i, &lij) in below(j) {
+                xj -= lij * x[i as usize];
+            }
+            x[j] = xj * self.inverse_diagonal[j];
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use faer::Par;
+    use faer::Side;
+    use faer::dyn_stack::{MemBuffer, MemStack};
+    use faer::linalg::cholesky::llt::factor::LltRegularization;
+    use faer::sparse::SymbolicSparseColMat;
+    use faer::sparse::linalg::SupernodalThreshold;
+    use faer::sparse::linalg::cholesky::{
+        CholeskySymbolicParams, SymbolicCholeskyRaw, SymmetricOrdering, factorize_symbolic_cholesky,
+    };
+    use rand::rngs::StdRng;
+    use rand::{Rng, SeedableRng};
+
+    /// A random H with dense blocks of sizes 1–6: a chain of blocks plus
+    /// random couplings, diagonally dominant. Returns the block pattern,
+    /// the sizes, the scalar pattern and its values (upper triangles).
+    fn random_h(
+        rng: &mut StdRng,
+    ) -> (
+        SymbolicSparseColMat<usize>,
+        Vec<usize>,
+        SymbolicSparseColMat<usize>,
+        Vec<f64>,
+    ) {
+        let nb: usize = rng.random_range(1..40);
+        let dims: Vec<usize> = (0..nb).map(|_| rng.random_range(1..=6)).collect();
+        // Each block with itself and the one before.
+        let mut rows: Vec<Vec<usize>> = (0..nb).map(|c| vec![c.saturating_sub(1), c]).collect();
+        for _ in 0..nb {
+            let (a, b) = (rng.random_range(0..nb), rng.random_range(0..nb));
+            rows[a.max(b)].push(a.min(b));
+        }
+        let mut first = vec![0];
+        for &d in &dims {
+            first.push(first.last().unwrap() + d);
+        }
+        let (mut bp, mut bi, mut sp, mut si) = (vec![0], vec![], vec![0], vec![]);
+        for (c, r) in rows.iter_mut().enumerate() {
+            r.sort_unstable();
+            r.dedup();
+            bi.extend(r.iter().copied());
+            bp.push(bi.len());
+            for col in first[c]..first[c + 1] {
+                for &b in r.iter() {
+                    let end = if b == c { col + 1 } else { first[b + 1] };
+                    si.extend(first[b]..end);
+                }
+                sp.push(si.len());
+            }
+        }
+        let n = first[nb];
+        let mut values = vec![0.0; si.len()];
+        let mut row_sum = vec![0.0; n];
+        for c in 0..n {
+            for k in sp[c]..sp[c + 1] {
+                if si[k] != c {
+                    values[k] = rng.random_range(-1.0..1.0);
+                    row_sum[si[k]] += f64::abs(values[k]);
+                    row_sum[c] += f64::abs(values[k]);
+                }
+            }
+        }
+        for c in 0..n {
+            values[sp[c + 1] - 1] = row_sum[c] + rng.random_range(0.1..2.0);
+        }
+        (
+            SymbolicSparseColMat::new_checked(nb, nb, bp, None, bi),
+            dims,
+            SymbolicSparseColMat::new_checked(n, n, sp, None, si),
+            values,
+        )
+    }
+
+    /// The block analysis gives faer's simplicial structure of the scalar
+    /// matrix exactly, the factorisation faer's values (to rounding), the
+    /// solve H⁻¹b; an indefinite H fails at its pivot and leaves the work
+    /// space clean for the next factorisation.
+    #[test]
+    fn block_simplicial_factor_matches_faer() {
+        let mut rng = StdRng::seed_from_u64(11);
+        for trial in 0..200 {
+            let (blocks, dims, scalar, values) = random_h(&mut rng);
+            let n = scalar.ncols();
+            let ours = SimplicialSymbolic::analyze(blocks.as_ref(), &dims).unwrap();
+            let params = CholeskySymbolicParams {
+                supernodal_flop_ratio_threshold: SupernodalThreshold::FORCE_SIMPLICIAL,
+                ..Default::default()
+            };
+            let faer_symbolic = factorize_symbolic_cholesky(
+                scalar.as_ref(),
+                Side::Upper,
+                SymmetricOrdering::Identity,
+                params,
+            )
+            .unwrap();
+            let SymbolicCholeskyRaw::Simplicial(l) = faer_symbolic.raw() else {
+                panic!("simplicial forced");
+            };
+            // Same column lengths, and each column's rows (diagonal, rest of
+            // its block, the blocks below) are faer's.
+            assert_eq!(ours.col_ptr, l.col_ptr());
+            for jb in 0..dims.len() {
+                for j in ours.rows(jb as u32) {
+                    let mut rows: Vec<usize> = (j..ours.rows(jb as u32).end).collect();
+                    for &ib in ours.below(jb) {
+                        rows.extend(ours.rows(ib));
+                    }
+                    assert_eq!(rows, l.row_idx()[l.col_ptr()[j]..l.col_ptr()[j + 1]]);
+                }
+            }
+
+            let mut chol = SimplicialCholesky::new(ours).unwrap();
+            if trial % 4 == 0 {
+                let mut bad = values.clone();
+                let c = rng.random_range(0..n);
+                bad[scalar.col_ptr()[c + 1] - 1] = -1.0;
+                let h = SparseColMatRef::new(scalar.as_ref(), &bad);
+                let err = chol.factorize(h).unwrap_err();
+                assert!(err.pivot <= c + 1, "pivot {} after column {c}", err.pivot);
+                assert!(chol.work.iter().all(|&w| w == 0.0));
+            }
+            chol.factorize(SparseColMatRef::new(scalar.as_ref(), &values))
+                .unwrap();
+            let mut faer_values = vec![0.0; faer_symbolic.len_val()];
+            let mut mem = MemBuffer::new(
+                faer_symbolic.factorize_numeric_llt_scratch::<f64>(Par::Seq, Default::default()),
+            );
+            faer_symbolic
+                .factorize_numeric_llt(
+                    &mut faer_values,
+                    SparseColMatRef::new(scalar.as_ref(), &values),
+                    Side::Upper,
+                    LltRegularization::default(),
+                    Par::Seq,
+                    MemStack::new(&mut mem),
+                    Default::default(),
+                )
+                .unwrap();
+            for (a, b) in chol.values.iter().zip(&faer_values) {
+                assert!((a - b).abs() <= 1e-12 * (1.0 + b.abs()), "{a} vs {b}");
+            }
+
+            let x: Vec<f64> = (0..n).map(|_| rng.random_range(-1.0..1.0)).collect();
+            let mut b = vec![0.0; n];
+            for c in 0..n {
+                let range = scalar.col_ptr()[c]..scalar.col_ptr()[c + 1];
+                for (&r, &v) in scalar.row_idx()[range.clone()].iter().zip(&values[range]) {
+                    b[r] += v * x[c];
+                    if r != c {
+                        b[c] += v * x[r];
+                    }
+                }
+            }
+            chol.solve_in_place(&mut b);
+            for (got, want) in b.iter().zip(&x) {
+                assert!((got - want).abs() < 1e-9, "{got} vs {want}");
+            }
+        }
+    }
+
+    /// A non-positive pivot is reported at its 1-based column, as faer does.
+    #[test]
+    fn a_non_positive_pivot_names_its_column() {
+        // Three 1×1 blocks in a chain; column 1's pivot is 1 - 2² < 0.
+        let blocks =
+            SymbolicSparseColMat::new_checked(3, 3, vec![0, 1, 3, 5], None, vec![0, 0, 1, 1, 2]);
+        let symbolic = SimplicialSymbolic::analyze(blocks.as_ref(), &[1, 1, 1]).unwrap();
+        let mut chol = SimplicialCholesky::new(symbolic).unwrap();
+        let values = [1.0, 2.0, 1.0, 0.0, 1.0];
+        let h = SparseColMatRef::new(blocks.as_ref(), &values);
+        assert_eq!(chol.factorize(h), Err(NotPositiveDefinite { pivot: 2 }));
+    }
+
+    /// faer's flop count (its column counts give the same ratio).
+    #[test]
+    fn flops_per_value_counts_as_faer() {
+        // One dense 3×3 block: columns of 3, 2 and 1 values.
+        let blocks = SymbolicSparseColMat::new_checked(1, 1, vec![0, 1], None, vec![0]);
+        let symbolic = SimplicialSymbolic::analyze(blocks.as_ref(), &[3]).unwrap();
+        let flops = (3.0 + 6.0) + (2.0 + 3.0) + (1.0 + 1.0);
+        assert_eq!(symbolic.flops_per_value(), flops / 6.0);
+    }
+}
