@@ -20,10 +20,9 @@ use serde::{Deserialize, Serialize};
 /// [`Factorization::Auto`] goes supernodal, by measurement (BENCHMARKS.md).
 /// Flops per factor non-zero on the benchmark files: the 2D files 5–13
 /// (Cairn's simplicial factorisation faster: kitti_00 2.4×, ais2klinik 2×,
-/// dlr, 12.6, by 15%), the M3500 family 18.8 (even: supernodal 0–20%
-/// faster per factorisation), intel_slamcourse 31, parking-garage 27,
-/// city10000 42 and the 3D spheres 130 and more (supernodal 1.5–2.3× faster
-/// and more). At 0.4 (16) each file gets its faster kind.
+/// dlr, 12.6, by 15%), the M3500 family 18.8 (supernodal even to 13%
+/// faster per solve), intel_slamcourse 31, parking-garage 27, city10000 42
+/// and the 3D spheres 130 and more (supernodal 1.2–1.8× faster, and more). At 0.4 (16) each file gets its faster kind.
 const AUTO_SUPERNODAL_THRESHOLD: f64 = 0.4;
 
 /// faer's flops per factor value above which it goes supernodal.
