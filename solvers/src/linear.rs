@@ -190,22 +190,53 @@ pub struct SparseCholesky {
 
 /// Cairn's block-aware simplicial factor, or faer's (supernodal, or under
 /// faer's own scalar AMD ordering).
+#[derive(Debug)]
 enum Factor {
     Simplicial(SimplicialCholesky),
-    Faer {
-        symbolic: SymbolicCholesky<usize>,
-        values: Vec<f64>,
-        scratch: MemBuffer,
-        par: Par,
-    },
+    Faer(FaerCholesky),
 }
 
-impl std::fmt::Debug for Factor {
+/// faer's factor with its symbolic analysis and work space.
+struct FaerCholesky {
+    symbolic: SymbolicCholesky<usize>,
+    values: Vec<f64>,
+    scratch: MemBuffer,
+    par: Par,
+}
+
+impl std::fmt::Debug for FaerCholesky {
     fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
-        match self {
-            Self::Simplicial(s) => f.debug_tuple("Simplicial").field(&s.len_val()).finish(),
-            Self::Faer { values, .. } => f.debug_tuple("Faer").field(&values.len()).finish(),
-        }
+        f.debug_struct("FaerCholesky")
+            .field("values", &self.values.len())
+            .finish()
+    }
+}
+
+impl FaerCholesky {
+    fn factorize(&mut self, h: SparseColMatRef<'_, usize, f64>) -> Result<(), NotPositiveDefinite> {
+        let regularization = LltRegularization {
+            dynamic_regularization_delta: 0.0,
+            dynamic_regularization_epsilon: 0.0,
+        };
+        self.symbolic
+            .factorize_numeric_llt(
+                &mut self.values,
+                h,
+                Side::Upper,
+                regularization,
+                self.par,
+                MemStack::new(&mut self.scratch),
+                Default::default(),
+            )
+            .map_err(|LltError::NonPositivePivot { index }| NotPositiveDefinite { pivot: index })?;
+        Ok(())
+    }
+
+    fn solve_in_place(&mut self, rhs: &mut [f64]) {
+        let llt = LltRef::new(&self.symbolic, &self.values);
+        let n = rhs.len();
+        let x = MatMut::from_column_major_slice_mut(rhs, n, 1);
+        llt.solve_in_place_with_conj(Conj::No, x, self.par, MemStack::new(&mut self.scratch));
     }
 }
 
@@ -279,25 +310,25 @@ impl SparseCholesky {
             symbolic.solve_in_place_scratch::<f64>(1, par),
         ]);
         let scratch = MemBuffer::try_new(req).map_err(|_| SolveError::OutOfMemory)?;
-        Ok(Factor::Faer {
+        Ok(Factor::Faer(FaerCholesky {
             values: vec![0.0; symbolic.len_val()],
             symbolic,
             scratch,
             par,
-        })
+        }))
     }
 
     /// Whether the factor is supernodal.
     pub fn is_supernodal(&self) -> bool {
-        matches!(&self.factor, Factor::Faer { symbolic, .. }
-            if matches!(symbolic.raw(), SymbolicCholeskyRaw::Supernodal(_)))
+        matches!(&self.factor, Factor::Faer(f)
+            if matches!(f.symbolic.raw(), SymbolicCholeskyRaw::Supernodal(_)))
     }
 
     /// Number of stored values of the factor L.
     pub fn factor_nnz(&self) -> usize {
         match &self.factor {
             Factor::Simplicial(s) => s.len_val(),
-            Factor::Faer { values, .. } => values.len(),
+            Factor::Faer(f) => f.values.len(),
         }
     }
 
@@ -311,31 +342,7 @@ impl SparseCholesky {
         let h = SparseColMatRef::new(pattern, values);
         match &mut self.factor {
             Factor::Simplicial(s) => s.factorize(h)?,
-            Factor::Faer {
-                symbolic,
-                values,
-                scratch,
-                par,
-            } => {
-                let regularization = LltRegularization {
-                    dynamic_regularization_delta: 0.0,
-                    dynamic_regularization_epsilon: 0.0,
-                };
-                let stack = MemStack::new(scratch);
-                symbolic
-                    .factorize_numeric_llt(
-                        values,
-                        h,
-                        Side::Upper,
-                        regularization,
-                        *par,
-                        stack,
-                        Default::default(),
-                    )
-                    .map_err(|LltError::NonPositivePivot { index }| NotPositiveDefinite {
-                        pivot: index,
-                    })?;
-            }
+            Factor::Faer(f) => f.factorize(h)?,
         }
         self.factored = true;
         Ok(())
@@ -349,17 +356,7 @@ impl SparseCholesky {
         }
         match &mut self.factor {
             Factor::Simplicial(s) => s.solve_in_place(rhs),
-            Factor::Faer {
-                symbolic,
-                values,
-                scratch,
-                par,
-            } => {
-                let llt = LltRef::new(symbolic, values);
-                let n = rhs.len();
-                let x = MatMut::from_column_major_slice_mut(rhs, n, 1);
-                llt.solve_in_place_with_conj(Conj::No, x, *par, MemStack::new(scratch));
-            }
+            Factor::Faer(f) => f.solve_in_place(rhs),
         }
         true
     }
