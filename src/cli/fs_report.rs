@@ -131,25 +131,26 @@ pub fn run(a: ReportArgs) -> Result<(), String> {
          scan at 0.5° and the gyro's 0.1 mrad per sample is 0.04°), and 0.075° is 0.13–0.18 m \
          at the 100–140 m the far cones of epfl_fsds_competition_1, random-0 and random-1 stand \
          from the start: these miss 0.10 m unaligned, not aligned.\n\
-         - **The loop-closure optimisation uses 24 sightings of each landmark**, spread over its \
-         history, to bound its time; with 12 the map RMSE was 0.188 m on the 12 shared tracks \
-         (seed 1), with 24 0.144 m. The final optimisation takes all of them (up to ~300 per \
-         landmark on the hairpins): 0.095 → 0.081 m against 24.\n\
+         - **The loop-closure optimisation uses 8 sightings of each landmark**, spread over its \
+         history, to bound its time. The final optimisation takes all of them (up to ~300 per \
+         landmark on the hairpins), so the loop closure only has to give the later laps a map to \
+         localise on: 8, 12, 16 and 24 sightings gave the same final map and association on 15 \
+         tracks × 10 seeds, both presets (0.0762 / 0.1635 m, 99.84% / 97.5% of detections, per \
+         track within 0.06 points), and the hairpins' loop closure (run alone) 15, 18, 21 and \
+         23 ms.\n\
          - **Loop closure time** is one Hessian structure, its symbolic analysis and one \
-         Gauss–Newton step over every 4th pose (with its bias) and the landmarks, 24 sightings \
-         each (the poses between follow; the final optimisation refines them all). Every pose \
-         and two steps took 160 ms on the 828 m hairpins, whose tight turns let each cone be seen \
-         from far more poses; now 35–45 ms there, with the same final map (0.080 m) and \
-         association (99.36%). Run alone (1,400 vertices, 15,000 edges): building the graph \
-         ~6 ms, structure and symbolic analysis ~15 ms, the step ~25 ms, of which ~17 ms is the \
-         numeric factorisation: \
-         cones seen across the hairpin legs couple most of the kept poses, so the factor has \
-         ~580,000 non-zeros for ~3,600 unknowns under every ordering tried (AMD, block AMD, \
-         landmarks first: 575,000–605,000), and faer's two-thread factorisation was slower. \
-         Fewer sightings barely thin it (12: 550,000). Fewer poses do, but cost association: \
-         every 6th pose 99.52 → 99.48% (15 tracks × 10 seeds), every 8th 99.22% (measured before \
-         the exchange step). This report runs two runs at once, and latencies on this shared \
-         2-core machine vary up to 3× between identical runs and between days.\n\
+         Gauss–Newton step over every 4th pose (with its bias) and the landmarks (the poses \
+         between follow; the final optimisation refines them all). Every pose and two steps took \
+         160 ms on the 828 m hairpins, whose tight turns let each cone be seen from far more \
+         poses. Run alone now (3,600 unknowns, 8,200 edges): building the graph ~1.5 ms, \
+         structure and symbolic analysis ~5.5 ms, the step ~7 ms, of which ~4.4 ms is the \
+         numeric factorisation: cones seen across the hairpin legs couple most of the kept \
+         poses, so the factor has ~510,000 non-zeros under every ordering tried (AMD, block AMD, \
+         landmarks first), and faer's two-thread factorisation was slower. Fewer poses thin it \
+         but cost association: every 6th pose 99.52 → 99.48% (15 tracks × 10 seeds), every 8th \
+         99.22% (measured before the exchange step). This report runs two runs at once, and \
+         latencies on this shared 2-core machine vary up to 3× between identical runs and \
+         between days.\n\
          - **Association** (99.7–99.9% on most tracks): the `standard` preset gates at χ² \
          99.9% (13.8); at 99% about 1% of true detections fell outside the gate and stayed \
          unmatched (98.6% overall). With the `hard` preset's false positive per scan the wider \
