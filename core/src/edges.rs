@@ -213,9 +213,9 @@ impl BinaryEdge<6, 6, 6> for EdgeSE3 {
     }
 
     /// With B = Xᵢ⁻¹Xⱼ and E = Z⁻¹B: perturbing Xⱼ ← Xⱼ·Δ gives E·Δ, so
-    /// Jⱼ = [[R_E, 0], [0, w·I + [v]×]] for q_E = (w, v). Perturbing Xᵢ ← Xᵢ·Δ gives
+    /// Jⱼ = [[R_E, 0], [0, w·I + \[v\]×]] for q_E = (w, v). Perturbing Xᵢ ← Xᵢ·Δ gives
     /// E·(B⁻¹Δ⁻¹B), a local step δ' = M·δ with
-    /// M = [[−R_Bᵀ, 2·R_Bᵀ[t_B]×], [0, −R_Bᵀ]], so Jᵢ = Jⱼ·M.
+    /// M = [[−R_Bᵀ, 2·R_Bᵀ\[t_B\]×], [0, −R_Bᵀ]], so Jᵢ = Jⱼ·M.
     fn jacobians(&self, xi: &SE3, xj: &SE3) -> (Matrix6<f64>, Matrix6<f64>) {
         let b = xi.between(xj);
         let e = self.inverse.compose(&b);

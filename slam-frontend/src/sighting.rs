@@ -188,8 +188,8 @@ impl Sighting {
         .sum()
     }
 
-    /// Whether the colour votes say clutter: [`CLUTTER_LOG_ODDS`] or more,
-    /// after [`JUDGE_AFTER`] sightings.
+    /// Whether the colour votes say clutter: `CLUTTER_LOG_ODDS` or more,
+    /// after `JUDGE_AFTER` sightings.
     pub fn looks_like_clutter(&self, config: &FrontEndConfig) -> bool {
         self.seen >= JUDGE_AFTER && self.clutter_log_odds(config) >= CLUTTER_LOG_ODDS
     }
@@ -198,7 +198,7 @@ impl Sighting {
     /// judgement on the whole run when the poses are final: the colours
     /// lean to clutter, and their log odds plus those of being detected in
     /// `hits` and missed in `misses` of the scans that had it well in view
-    /// reach [`CLUTTER_LOG_ODDS`]. Misses alone never decide: a cone mapped
+    /// reach `CLUTTER_LOG_ODDS`. Misses alone never decide: a cone mapped
     /// twice shares its detections between the two (the hairpins track,
     /// 40 of 110 scans each), and a real detector misses occluded cones.
     pub fn is_clutter(&self, hits: u32, misses: u32, config: &FrontEndConfig) -> bool {

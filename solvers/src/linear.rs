@@ -244,7 +244,7 @@ impl SparseCholesky {
     /// Symbolic analysis of H, given by its upper triangle `pattern` and the
     /// upper triangle of its vertex blocks, `block_pattern`, with each
     /// block's size in `block_dims`. Block orderings are the caller's to apply (by
-    /// numbering the blocks in [`block_order`]); only [`Ordering::Amd`] is
+    /// numbering the blocks in `block_order`); only [`Ordering::Amd`] is
     /// left to faer. A simplicial factor is Cairn's block-aware one
     /// (the `simplicial` module), a supernodal one faer's.
     pub fn analyze(

@@ -27,7 +27,7 @@ impl Default for Calibration {
 const CALIBRATION_GAIN: f64 = 0.02;
 
 impl Calibration {
-    /// (speed scale, yaw-rate bias), as [`Odometry`] applies them.
+    /// (speed scale, yaw-rate bias), as [`Odometry`](crate::motion::Odometry) applies them.
     pub fn correction(&self) -> (f64, f64) {
         (self.speed_scale, self.yaw_rate_bias)
     }
