@@ -24,6 +24,12 @@ fn max_abs(v: &[f64]) -> f64 {
 /// [`Optimizer::optimize`] as often as the values change; the Hessian pattern,
 /// the symbolic factorisation and every buffer are reused.
 ///
+/// Linearisation and assembly run on rayon's current thread pool, with the
+/// same result for any number of threads. Called from outside a pool, each
+/// of those loops is handed to the pool and waited for; on small graphs
+/// that costs a tenth of an iteration, so call it inside
+/// `ThreadPool::install` (as `cairn solve` does) where latency matters.
+///
 /// ```
 /// use cairn_core::{EdgeSE2, Graph, SE2};
 /// use cairn_solvers::{Algorithm, Optimizer, SolverConfig};
