@@ -22,7 +22,8 @@ use serde::{Deserialize, Serialize};
 /// (Cairn's simplicial factorisation faster: kitti_00 2.4×, ais2klinik 2×,
 /// dlr, 12.6, by 15%), the M3500 family 18.8 (supernodal even to 13%
 /// faster per solve), intel_slamcourse 31, parking-garage 27, city10000 42
-/// and the 3D spheres 130 and more (supernodal 1.2–1.8× faster, and more). At 0.4 (16) each file gets its faster kind.
+/// and the 3D spheres 130 and more (supernodal 1.2–1.8× faster, and more).
+/// At 0.4 (16) each file gets its faster kind.
 const AUTO_SUPERNODAL_THRESHOLD: f64 = 0.4;
 
 /// faer's flops per factor value above which it goes supernodal.
@@ -228,8 +229,8 @@ impl FaerCholesky {
                 MemStack::new(&mut self.scratch),
                 Default::default(),
             )
-            .map_err(|LltError::NonPositivePivot { index }| NotPositiveDefinite { pivot: index })?;
-        Ok(())
+            .map(|_| ())
+            .map_err(|LltError::NonPositivePivot { index }| NotPositiveDefinite { pivot: index })
     }
 
     fn solve_in_place(&mut self, rhs: &mut [f64]) {
@@ -243,9 +244,9 @@ impl FaerCholesky {
 impl SparseCholesky {
     /// Symbolic analysis of H, given by its upper triangle `pattern` and the
     /// upper triangle of its vertex blocks, `block_pattern`, with each
-    /// block's size in `block_dims`. Block orderings are the caller's to apply (by
-    /// numbering the blocks in `block_order`); only [`Ordering::Amd`] is
-    /// left to faer. A simplicial factor is Cairn's block-aware one
+    /// block's size in `block_dims`. Block orderings are the caller's to
+    /// apply (by numbering the blocks in `block_order`); only
+    /// [`Ordering::Amd`] is left to faer. A simplicial factor is Cairn's block-aware one
     /// (the `simplicial` module), a supernodal one faer's.
     pub fn analyze(
         pattern: SymbolicSparseColMatRef<'_, usize>,

@@ -11,6 +11,7 @@
 
 use crate::SolveError;
 use crate::linear::NotPositiveDefinite;
+use crate::structure::group_by_key;
 use faer::sparse::{SparseColMatRef, SymbolicSparseColMatRef};
 
 /// The factor's structure from the block analysis, before any values.
@@ -71,22 +72,14 @@ impl SimplicialSymbolic {
             row_blocks[begin..].sort_unstable();
             row_start.push(row_blocks.len());
         }
-        // The block columns: the transpose of the rows, so ascending too.
-        let mut col_start = vec![0usize; nb + 1];
-        for &j in &row_blocks {
-            col_start[j as usize + 1] += 1;
-        }
-        for j in 0..nb {
-            col_start[j + 1] += col_start[j];
-        }
-        let mut fill = col_start.clone();
-        let mut col_blocks = vec![0u32; row_blocks.len()];
-        for k in 0..nb {
-            for &j in &row_blocks[row_start[k]..row_start[k + 1]] {
-                col_blocks[fill[j as usize]] = k as u32;
-                fill[j as usize] += 1;
-            }
-        }
+        // The block columns: the rows grouped by column, so ascending too.
+        let pairs: Vec<(u32, u32)> = (0..nb)
+            .flat_map(|k| {
+                let rows = &row_blocks[row_start[k]..row_start[k + 1]];
+                rows.iter().map(move |&j| (j, k as u32))
+            })
+            .collect();
+        let (col_start, col_blocks) = group_by_key(nb, &pairs);
         let mut col_ptr = Vec::with_capacity(dim + 1);
         col_ptr.push(0usize);
         let mut len = 0usize;

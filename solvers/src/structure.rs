@@ -61,7 +61,10 @@ struct BlockSource {
 
 /// Groups `(key, item)` pairs by key with a counting sort, keeping each key's
 /// items in the order given: `(start, items)` with key k's at `start[k]..start[k + 1]`.
-fn group_by_key<T: Copy + Default>(keys: usize, pairs: &[(u32, T)]) -> (Vec<usize>, Vec<T>) {
+pub(crate) fn group_by_key<T: Copy + Default>(
+    keys: usize,
+    pairs: &[(u32, T)],
+) -> (Vec<usize>, Vec<T>) {
     let mut start = vec![0usize; keys + 1];
     for &(k, _) in pairs {
         start[k as usize + 1] += 1;

@@ -272,7 +272,8 @@ pub fn run(a: SolveArgs) -> Result<(), String> {
     // The whole solve runs on one of the pool's threads: the solver's
     // parallel loops then start from inside the pool instead of handing
     // each one over from the main thread and waiting for it (tens of
-    // microseconds per loop, a tenth of a small file's iteration).
+    // microseconds per loop, a tenth of a small file's iteration). Its
+    // threads get the main thread's 8 MiB stack.
     let pool = rayon::ThreadPoolBuilder::new()
         .num_threads(a.threads)
         .stack_size(8 << 20)
