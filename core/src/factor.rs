@@ -4,7 +4,7 @@
 
 use crate::edge::{BinaryEdge, UnaryEdge};
 use crate::kernel::RobustKernel;
-use crate::layout;
+use crate::layout::{self, Scatter};
 use crate::values::Values;
 use nalgebra::{SMatrix, SVector};
 use rayon::prelude::*;
@@ -56,6 +56,10 @@ pub trait FactorGroup: Send + Sync + 'static {
     /// Writes every edge's slot (see [`crate::layout`]) into `out`, which holds
     /// `len × stride` scalars.
     fn linearize(&self, values: &Values, out: &mut [f64]);
+    /// Linearises every edge on the calling thread and adds its blocks
+    /// straight into H and the gradient where `out` says. In edge order,
+    /// so each entry gets exactly the sum the buffer's assembly makes.
+    fn linearize_into(&self, values: &Values, out: Scatter<'_>);
     /// Sets the other vertex of edge `i` from the vertex in position `known`
     /// (spanning-tree initialisation). Returns the vertex set, if any.
     fn propagate(&self, i: usize, known: usize, values: &mut Values) -> Option<usize>;
@@ -203,6 +207,17 @@ impl<T: UnaryEdge<E, D>, const E: usize, const D: usize> FactorGroup for UnaryGr
                 slot[stride - 1] = chi2;
             });
     }
+    fn linearize_into(&self, values: &Values, out: Scatter<'_>) {
+        for (i, en) in self.entries.iter().enumerate() {
+            let (x, e) = self.eval(i, values);
+            let j = en.edge.jacobian(&x);
+            let (chi2, weight) = en.robust(&e);
+            let oj = en.information * j * weight;
+            out.blocks[i].add_diagonal(out.hessian, &(j.transpose() * oj));
+            layout::add_gradient(out.gradient, out.columns[i], &(oj.transpose() * e));
+            out.chi2[i] = chi2;
+        }
+    }
     fn propagate(&self, _i: usize, _known: usize, _values: &mut Values) -> Option<usize> {
         None
     }
@@ -315,6 +330,23 @@ impl<T: BinaryEdge<E, D1, D2>, const E: usize, const D1: usize, const D2: usize>
                 slot[g2..g2 + D2].copy_from_slice((oj2.transpose() * e).as_slice());
                 slot[stride - 1] = chi2;
             });
+    }
+    fn linearize_into(&self, values: &Values, out: Scatter<'_>) {
+        let targets = out.blocks.chunks_exact(3).zip(out.columns.chunks_exact(2));
+        for ((en, (t, c)), chi2_out) in self.entries.iter().zip(targets).zip(out.chi2.iter_mut()) {
+            let x1 = values.get::<T::V1, D1>(en.vertices[0]);
+            let x2 = values.get::<T::V2, D2>(en.vertices[1]);
+            let (e, j1, j2) = en.edge.linearize(&x1, &x2);
+            let (chi2, weight) = en.robust(&e);
+            let oj1 = en.information * j1 * weight;
+            let oj2 = en.information * j2 * weight;
+            t[0].add_diagonal(out.hessian, &(j1.transpose() * oj1));
+            t[1].add(out.hessian, &(j1.transpose() * oj2));
+            t[2].add_diagonal(out.hessian, &(j2.transpose() * oj2));
+            layout::add_gradient(out.gradient, c[0], &(oj1.transpose() * e));
+            layout::add_gradient(out.gradient, c[1], &(oj2.transpose() * e));
+            *chi2_out = chi2;
+        }
     }
     fn propagate(&self, i: usize, known: usize, values: &mut Values) -> Option<usize> {
         let en = &self.entries[i];

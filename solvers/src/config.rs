@@ -187,9 +187,12 @@ impl Termination {
 /// Seconds spent in each phase.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Serialize, Deserialize)]
 pub struct PhaseTimes {
-    /// Errors, Jacobians and the edges' blocks.
+    /// Errors, Jacobians and the edges' blocks; on one thread the blocks
+    /// are added straight into H and the gradient, so this includes the
+    /// assembly.
     pub linearize: f64,
-    /// Summing blocks into H and the gradient.
+    /// Summing the edges' blocks into H and the gradient, when they were
+    /// linearised in parallel (zero on one thread).
     pub assemble: f64,
     /// Numeric Cholesky.
     pub factorize: f64,

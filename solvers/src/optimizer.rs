@@ -20,6 +20,17 @@ fn max_abs(v: &[f64]) -> f64 {
     v.iter().fold(0.0, |m, x| m.max(x.abs()))
 }
 
+/// Where the last linearisation put its result.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+enum Pending {
+    /// In H and the gradient already.
+    Nothing,
+    /// In the buffer, to be assembled.
+    Buffer,
+    /// In `trial`, to be swapped in.
+    Trial,
+}
+
 /// An optimiser bound to one graph's structure. Build it once and call
 /// [`Optimizer::optimize`] as often as the values change; the Hessian pattern,
 /// the symbolic factorisation and every buffer are reused.
@@ -55,7 +66,15 @@ pub struct Optimizer {
     config: SolverConfig,
     structure: HessianStructure,
     cholesky: Option<SparseCholesky>,
+    /// The edges' blocks, for assembling H in parallel (allocated on first use).
     buffer: Vec<f64>,
+    /// H and the gradient at a trial point, linearised on one thread while
+    /// H and the gradient still hold the current point's (allocated on first use).
+    trial: Option<(Vec<f64>, Vec<f64>)>,
+    /// Each edge's χ², linearised on one thread.
+    chi2_terms: Vec<f64>,
+    /// What the last linearisation left for [`Self::accept`] to make current.
+    pending: Pending,
     hessian: Vec<f64>,
     diagonal_backup: Vec<f64>,
     damping: Vec<f64>,
@@ -96,7 +115,10 @@ impl Optimizer {
         let free = (0..graph.num_vertices()).filter(|&v| !fixed[v]).collect();
         Ok(Self {
             config,
-            buffer: vec![0.0; structure.buffer_len],
+            buffer: Vec::new(),
+            trial: None,
+            chi2_terms: vec![0.0; structure.num_edges()],
+            pending: Pending::Nothing,
             hessian: vec![0.0; structure.nnz()],
             diagonal_backup: vec![0.0; structure.diagonal.len()],
             damping: vec![0.0; structure.dim],
@@ -223,15 +245,50 @@ impl Optimizer {
 
     /// Linearises every edge and assembles H and the gradient; returns χ².
     fn linearize(&mut self, graph: &Graph, phases: &mut PhaseTimes) -> f64 {
-        let chi2 = self.linearize_edges(graph, phases);
-        self.assemble(phases);
+        let chi2 = self.linearize_trial(graph, phases, false);
+        self.accept(phases);
         chi2
     }
 
-    /// Linearises every edge into the buffer, leaving H and the gradient as
-    /// they were; returns χ².
-    fn linearize_edges(&mut self, graph: &Graph, phases: &mut PhaseTimes) -> f64 {
+    /// Linearises every edge at the graph's values and returns χ²; with
+    /// `keep_current`, H and the gradient keep the current point's until
+    /// [`Self::accept`] makes the new point's current (a step may still be
+    /// rejected). On one thread the edges add straight into H (or the trial
+    /// copy); on more they write their blocks into the buffer in parallel,
+    /// and `accept` sums them. Both give the same bits.
+    fn linearize_trial(
+        &mut self,
+        graph: &Graph,
+        phases: &mut PhaseTimes,
+        keep_current: bool,
+    ) -> f64 {
         let t = Instant::now();
+        let chi2 = if rayon::current_num_threads() > 1 {
+            self.linearize_parallel(graph)
+        } else {
+            let (hessian, gradient) = if keep_current {
+                let (nnz, dim) = (self.hessian.len(), self.gradient.len());
+                self.pending = Pending::Trial;
+                let (h, g) = self
+                    .trial
+                    .get_or_insert_with(|| (vec![0.0; nnz], vec![0.0; dim]));
+                (h, g)
+            } else {
+                self.pending = Pending::Nothing;
+                (&mut self.hessian, &mut self.gradient)
+            };
+            self.structure
+                .linearize_into(graph, hessian, gradient, &mut self.chi2_terms)
+        };
+        phases.linearize += since(t);
+        chi2
+    }
+
+    /// Linearises every edge into the buffer in parallel; returns χ².
+    fn linearize_parallel(&mut self, graph: &Graph) -> f64 {
+        if self.buffer.is_empty() {
+            self.buffer = vec![0.0; self.structure.buffer_len];
+        }
         let values = graph.values();
         let groups = graph.factor_groups();
         for (k, group) in groups.iter().enumerate() {
@@ -244,17 +301,27 @@ impl Optimizer {
                 .unwrap_or(self.structure.buffer_len);
             group.linearize(values, &mut self.buffer[start..end]);
         }
-        let chi2 = self.structure.chi2(&self.buffer);
-        phases.linearize += since(t);
-        chi2
+        self.pending = Pending::Buffer;
+        self.structure.chi2(&self.buffer)
     }
 
-    /// Sums the buffer's blocks into H and the gradient.
-    fn assemble(&mut self, phases: &mut PhaseTimes) {
-        let t = Instant::now();
-        self.structure
-            .assemble(&self.buffer, &mut self.hessian, &mut self.gradient);
-        phases.assemble += since(t);
+    /// Makes the last linearisation's H and gradient current.
+    fn accept(&mut self, phases: &mut PhaseTimes) {
+        match std::mem::replace(&mut self.pending, Pending::Nothing) {
+            Pending::Nothing => {}
+            Pending::Buffer => {
+                let t = Instant::now();
+                self.structure
+                    .assemble(&self.buffer, &mut self.hessian, &mut self.gradient);
+                phases.assemble += since(t);
+            }
+            Pending::Trial => {
+                if let Some((h, g)) = self.trial.as_mut() {
+                    std::mem::swap(h, &mut self.hessian);
+                    std::mem::swap(g, &mut self.gradient);
+                }
+            }
+        }
     }
 
     /// Factorises H + λD (λ = 0 for GN; D is `self.damping`) and solves for
@@ -351,8 +418,10 @@ impl Optimizer {
             self.save(graph);
             self.apply_step(graph);
             phases.update += since(t);
-            // Assembled below unless this was the last iteration (as LM does).
-            let new_chi2 = self.linearize_edges(graph, &mut phases);
+            // H is not needed again: the new point's replaces it (on more
+            // than one thread it is assembled below unless this was the
+            // last iteration).
+            let new_chi2 = self.linearize_trial(graph, &mut phases, false);
             if !new_chi2.is_finite() {
                 self.restore(graph);
                 self.linearize(graph, &mut phases);
@@ -365,7 +434,7 @@ impl Optimizer {
             let converged = (0.0..self.config.relative_decrease).contains(&decrease);
             let last = small_step || converged || iteration + 1 == self.config.max_iterations;
             if !last {
-                self.assemble(&mut phases);
+                self.accept(&mut phases);
             }
             let stats = IterationStats {
                 iteration,
@@ -424,10 +493,10 @@ impl Optimizer {
                     let t = Instant::now();
                     self.apply_step(graph);
                     phases.update += since(t);
-                    // Linearised at once: if the step is accepted, H and the
-                    // gradient are assembled from these blocks; if not, H and
-                    // the gradient still hold the last accepted point's.
-                    trial_chi2 = self.linearize_edges(graph, &mut phases);
+                    // Linearised at once: if the step is accepted, this
+                    // becomes H and the gradient; if not, they still hold
+                    // the last accepted point's.
+                    trial_chi2 = self.linearize_trial(graph, &mut phases, true);
                 }
                 // Decrease of χ² the damped linear model predicts, sᵀ(λDs − g),
                 // with g2o's 1e-3 guard against a zero prediction.
@@ -482,7 +551,7 @@ impl Optimizer {
             let converged = (0.0..self.config.relative_decrease).contains(&decrease);
             let last = small_step || converged || iteration + 1 == self.config.max_iterations;
             if !last {
-                self.assemble(&mut phases);
+                self.accept(&mut phases);
             }
             let stats = IterationStats {
                 iteration,

@@ -1,15 +1,16 @@
-//! The sparsity pattern of the Hessian H = JᵀΩJ, built once per graph, and,
-//! for every block of H, the edges' blocks that sum into it.
+//! The sparsity pattern of the Hessian H = JᵀΩJ, built once per graph, and
+//! where every edge's blocks add into it.
 //!
-//! Each iteration the edges write their blocks into their own slots of one
-//! buffer (in parallel, see [`cairn_core::layout`]); every entry of H then sums
-//! its sources in a fixed order (edge order). No locks, and the same result
-//! for any number of threads.
+//! On one thread each edge adds its blocks straight into H, in edge order.
+//! On more, the edges write their blocks into their own slots of one buffer
+//! (in parallel, see [`cairn_core::layout`]) and every entry of H then sums
+//! its sources in the same edge order. No locks, and the same bits for any
+//! number of threads.
 
 use crate::SolveError;
 use crate::linear::{Blocks, Ordering, block_order};
 use cairn_core::Graph;
-use cairn_core::layout;
+use cairn_core::layout::{self, BlockTarget, Scatter};
 use faer::sparse::SymbolicSparseColMat;
 
 /// Entries of H summed per parallel work item, at least.
@@ -48,6 +49,12 @@ pub struct HessianStructure {
     /// First block column of each parallel work item, and the end.
     chunks: Vec<usize>,
     chi2_slots: Vec<u32>,
+    /// Where every edge's blocks and gradient segments add into H and the
+    /// gradient (for linearising straight into them on one thread), in
+    /// edge order, and where each factor group's start in them.
+    block_targets: Vec<BlockTarget>,
+    column_targets: Vec<u32>,
+    group_targets: Vec<[usize; 3]>,
 }
 
 /// One edge's contribution to a block of H: where its block starts in the
@@ -191,7 +198,12 @@ impl HessianStructure {
         let mut h_sources: Vec<(u32, BlockSource)> = Vec::new();
         let mut g_sources: Vec<(u32, u32)> = Vec::new();
         let mut chi2_slots = Vec::new();
+        // (block of H, transposed) of every edge block, u32::MAX if fixed.
+        let mut targets: Vec<(u32, bool)> = Vec::new();
+        let mut column_targets = Vec::new();
+        let mut group_targets = Vec::new();
         for g in graph.factor_groups() {
+            group_targets.push([targets.len(), column_targets.len(), chi2_slots.len()]);
             group_offset.push(buffer_len);
             let dims = g.vertex_dims();
             let stride = layout::stride(dims);
@@ -205,20 +217,25 @@ impl HessianStructure {
                 let vs = g.vertices(i);
                 for p in 0..vs.len() {
                     let bp = block_of[vs[p]];
-                    if bp == u32::MAX {
-                        continue;
-                    }
                     for q in p..vs.len() {
                         let bq = block_of[vs[q]];
-                        if bq == u32::MAX {
+                        if bp == u32::MAX || bq == u32::MAX {
+                            targets.push((u32::MAX, false));
                             continue;
                         }
                         let source = BlockSource {
                             offset: (slot + layout::block_offset(dims, p, q)) as u32,
                             transposed: bp > bq,
                         };
-                        h_sources.push((block_index(bp.min(bq), bp.max(bq)) as u32, source));
+                        let k = block_index(bp.min(bq), bp.max(bq)) as u32;
+                        h_sources.push((k, source));
+                        targets.push((k, bp > bq));
                     }
+                    if bp == u32::MAX {
+                        column_targets.push(u32::MAX);
+                        continue;
+                    }
+                    column_targets.push(column_of_block[bp as usize] as u32);
                     g_sources.push((bp, (slot + layout::gradient_offset(dims, p)) as u32));
                 }
                 chi2_slots.push((slot + stride - 1) as u32);
@@ -279,6 +296,30 @@ impl HessianStructure {
             chunks.push(blocks);
         }
         let as_u32 = |v: Vec<usize>| v.into_iter().map(|x| x as u32).collect::<Vec<u32>>();
+        // Each block of H's entry (0, 0), and the rows above the diagonal in
+        // its block column (the diagonal block's offset: it comes last).
+        let mut block_first = vec![BlockTarget::NONE; block_row_idx.len()];
+        for c in 0..blocks {
+            let column = col_ptr[column_of_block[c]] as u32;
+            let above = row_offset[block_col_ptr[c + 1] - 1];
+            for k in block_col_ptr[c]..block_col_ptr[c + 1] {
+                block_first[k] = BlockTarget {
+                    first: column + row_offset[k],
+                    above,
+                    transposed: false,
+                };
+            }
+        }
+        let block_targets = targets
+            .into_iter()
+            .map(|(k, transposed)| match k {
+                u32::MAX => BlockTarget::NONE,
+                k => BlockTarget {
+                    transposed,
+                    ..block_first[k as usize]
+                },
+            })
+            .collect();
 
         let pattern = SymbolicSparseColMat::new_checked(dim, dim, col_ptr, None, row_idx);
         let block_pattern = SymbolicSparseColMat::new_checked(
@@ -305,6 +346,9 @@ impl HessianStructure {
             gradient_sources: g_sources,
             chunks,
             chi2_slots,
+            block_targets,
+            column_targets,
+            group_targets,
         })
     }
 
@@ -391,6 +435,44 @@ impl HessianStructure {
         }
     }
 
+    /// Linearises every edge on the calling thread, adding its blocks
+    /// straight into `values` (H) and `gradient`, and returns χ²: the same
+    /// bits as [`cairn_core::FactorGroup::linearize`] and [`Self::assemble`],
+    /// without the buffer between them.
+    pub fn linearize_into(
+        &self,
+        graph: &Graph,
+        values: &mut [f64],
+        gradient: &mut [f64],
+        chi2: &mut [f64],
+    ) -> f64 {
+        // -0.0: the empty sum, as the buffer's assembly starts its sums.
+        values.fill(-0.0);
+        gradient.fill(-0.0);
+        let groups = graph.factor_groups();
+        for (k, group) in groups.iter().enumerate() {
+            let [b, c, e] = self.group_targets[k];
+            let n = group.len();
+            let arity = group.vertex_dims().len();
+            group.linearize_into(
+                graph.values(),
+                Scatter {
+                    blocks: &self.block_targets[b..b + n * arity * (arity + 1) / 2],
+                    columns: &self.column_targets[c..c + n * arity],
+                    hessian: values,
+                    gradient,
+                    chi2: &mut chi2[e..e + n],
+                },
+            );
+        }
+        cairn_core::factor::deterministic_sum(chi2.len(), |k| chi2[k])
+    }
+
+    /// Number of edges (χ² terms).
+    pub fn num_edges(&self) -> usize {
+        self.chi2_slots.len()
+    }
+
     /// `out = H·x` for the symmetric H whose upper triangle is `values`.
     pub fn hessian_times(&self, values: &[f64], x: &[f64], out: &mut [f64]) {
         out.iter_mut().for_each(|o| *o = 0.0);
@@ -417,8 +499,8 @@ impl HessianStructure {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use cairn_core::{EdgePriorSE2, EdgeSE2, EdgeSE2XY, SE2};
-    use nalgebra::{Matrix2, Matrix3, Vector2};
+    use cairn_core::{EdgePriorSE2, EdgeSE2, EdgeSE2XY, EdgeSE3, RobustKernel, SE2, SE3};
+    use nalgebra::{Matrix2, Matrix3, Matrix6, UnitQuaternion, Vector2, Vector3};
     use rand::rngs::StdRng;
     use rand::{Rng, SeedableRng};
     use std::collections::{HashMap, HashSet};
@@ -466,6 +548,88 @@ mod tests {
         let fixed = (0..g.num_vertices())
             .map(|_| rng.random_bool(0.2))
             .collect();
+        (g, fixed)
+    }
+
+    /// Linearising straight into H on one thread gives exactly the bits of
+    /// linearising into the buffer and assembling from it: H, the gradient
+    /// and χ², with fixed vertices, landmarks, priors and robust kernels,
+    /// in every block order, on SE2 and SE3 graphs.
+    #[test]
+    fn linearizing_into_h_matches_the_buffer_bit_for_bit() {
+        let mut rng = StdRng::seed_from_u64(11);
+        let orderings = [Ordering::BlockAmd, Ordering::Identity, Ordering::Schur];
+        let mut graphs: Vec<(Graph, Vec<bool>)> = (0..60)
+            .map(|k| random_graph(&mut rng, if k % 10 == 0 { 400 } else { 15 }))
+            .collect();
+        for _ in 0..10 {
+            graphs.push(random_se3_graph(&mut rng));
+        }
+        for (k, (mut graph, fixed)) in graphs.into_iter().enumerate() {
+            for v in 0..graph.num_vertices() {
+                let dim = graph.vertex(v).kind.dim;
+                let delta: Vec<f64> = (0..dim).map(|_| rng.random_range(-0.5..0.5)).collect();
+                graph.oplus(v, &delta);
+            }
+            for e in 0..graph.num_edges() {
+                let kernel = [
+                    None,
+                    Some(RobustKernel::Huber(0.5)),
+                    Some(RobustKernel::Cauchy(1.0)),
+                ][rng.random_range(0..3)];
+                graph.set_robust_kernel(e, kernel);
+            }
+            let s = HessianStructure::new(&graph, &fixed, orderings[k % 3]).unwrap();
+            let mut buffer = vec![0.0; s.buffer_len];
+            for (g, &start) in graph.factor_groups().iter().zip(&s.group_offset) {
+                let len = g.len() * layout::stride(g.vertex_dims());
+                g.linearize(graph.values(), &mut buffer[start..start + len]);
+            }
+            let (mut h1, mut g1) = (vec![f64::NAN; s.nnz()], vec![f64::NAN; s.dim]);
+            s.assemble(&buffer, &mut h1, &mut g1);
+            let (mut h2, mut g2) = (vec![f64::NAN; s.nnz()], vec![f64::NAN; s.dim]);
+            let mut terms = vec![f64::NAN; s.num_edges()];
+            let chi2 = s.linearize_into(&graph, &mut h2, &mut g2, &mut terms);
+            let bits = |v: &[f64]| v.iter().map(|x| x.to_bits()).collect::<Vec<_>>();
+            assert_eq!(bits(&h1), bits(&h2), "graph {k}: H");
+            assert_eq!(bits(&g1), bits(&g2), "graph {k}: gradient");
+            assert_eq!(s.chi2(&buffer).to_bits(), chi2.to_bits(), "graph {k}: χ²");
+            assert!(chi2 > 0.0);
+        }
+    }
+
+    /// A random SE3 pose graph (odometry chain and loop closures), some
+    /// vertices fixed, ids shuffled.
+    fn random_se3_graph(rng: &mut StdRng) -> (Graph, Vec<bool>) {
+        let mut g = Graph::new();
+        let n = rng.random_range(3..40);
+        let mut ids: Vec<i64> = (0..n as i64).collect();
+        for i in (1..ids.len()).rev() {
+            ids.swap(i, rng.random_range(0..=i));
+        }
+        let pose = |rng: &mut StdRng| {
+            let t = Vector3::new(rng.random(), rng.random(), rng.random());
+            let r = UnitQuaternion::from_euler_angles(rng.random(), rng.random(), rng.random());
+            SE3::new(t, r)
+        };
+        for &id in &ids {
+            g.add_vertex(id, pose(rng)).unwrap();
+        }
+        let mut information = Matrix6::identity();
+        information[(0, 4)] = 0.3;
+        information[(4, 0)] = 0.3;
+        for i in 1..n {
+            g.add_edge(ids[i - 1], ids[i], EdgeSE3::new(pose(rng)), information)
+                .unwrap();
+        }
+        for _ in 0..n {
+            let (a, b) = (rng.random_range(0..n), rng.random_range(0..n));
+            if a != b {
+                g.add_edge(ids[a], ids[b], EdgeSE3::new(pose(rng)), information)
+                    .unwrap();
+            }
+        }
+        let fixed = (0..n).map(|_| rng.random_bool(0.2)).collect();
         (g, fixed)
     }
 

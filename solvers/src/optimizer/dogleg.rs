@@ -86,9 +86,9 @@ impl Optimizer {
                 let t0 = Instant::now();
                 self.apply_step(graph);
                 phases.update += since(t0);
-                // Linearised at once, as in LM: an accepted step's blocks are
-                // assembled below; a rejected one leaves H and g as they were.
-                let trial = self.linearize_edges(graph, &mut phases);
+                // Linearised at once, as in LM: an accepted step's H and g
+                // become current below; a rejected one leaves them as they were.
+                let trial = self.linearize_trial(graph, &mut phases, true);
                 let rho = (chi2 - trial) / predicted;
                 if trial.is_finite() && predicted > 0.0 && rho > 0.0 {
                     if rho > 0.75 {
@@ -125,7 +125,7 @@ impl Optimizer {
             let small_step = self.step_is_small(graph);
             let converged = (0.0..self.config.relative_decrease).contains(&decrease);
             if !(small_step || converged || iteration + 1 == self.config.max_iterations) {
-                self.assemble(&mut stats.phases);
+                self.accept(&mut stats.phases);
             }
             stats.chi2 = chi2;
             stats.step_max = max_abs(&self.step);
