@@ -1,6 +1,7 @@
 //! Gauss-Newton and Levenberg-Marquardt over the fixed Hessian structure.
 
 use crate::SolveError;
+use crate::assembly::Assembly;
 use crate::config::{
     Algorithm, Damping, IterationStats, PhaseTimes, SolverConfig, Summary, Termination,
 };
@@ -66,8 +67,9 @@ pub struct Optimizer {
     config: SolverConfig,
     structure: HessianStructure,
     cholesky: Option<SparseCholesky>,
-    /// The edges' blocks, for assembling H in parallel (allocated on first use).
-    buffer: Vec<f64>,
+    /// The edges' blocks and where they sum into H, for linearising in
+    /// parallel (built on first use).
+    parallel: Option<(Assembly, Vec<f64>)>,
     /// H and the gradient at a trial point, linearised on one thread while
     /// H and the gradient still hold the current point's (allocated on first use).
     trial: Option<(Vec<f64>, Vec<f64>)>,
@@ -115,7 +117,7 @@ impl Optimizer {
         let free = (0..graph.num_vertices()).filter(|&v| !fixed[v]).collect();
         Ok(Self {
             config,
-            buffer: Vec::new(),
+            parallel: None,
             trial: None,
             chi2_terms: vec![0.0; structure.num_edges()],
             pending: Pending::Nothing,
@@ -286,23 +288,21 @@ impl Optimizer {
 
     /// Linearises every edge into the buffer in parallel; returns χ².
     fn linearize_parallel(&mut self, graph: &Graph) -> f64 {
-        if self.buffer.is_empty() {
-            self.buffer = vec![0.0; self.structure.buffer_len];
-        }
+        let structure = &self.structure;
+        let (assembly, buffer) = self.parallel.get_or_insert_with(|| {
+            let assembly = Assembly::new(structure, graph);
+            let buffer = vec![0.0; assembly.buffer_len];
+            (assembly, buffer)
+        });
         let values = graph.values();
         let groups = graph.factor_groups();
         for (k, group) in groups.iter().enumerate() {
-            let start = self.structure.group_offset[k];
-            let end = self
-                .structure
-                .group_offset
-                .get(k + 1)
-                .copied()
-                .unwrap_or(self.structure.buffer_len);
-            group.linearize(values, &mut self.buffer[start..end]);
+            let start = assembly.group_offset[k];
+            let end = (assembly.group_offset.get(k + 1).copied()).unwrap_or(assembly.buffer_len);
+            group.linearize(values, &mut buffer[start..end]);
         }
         self.pending = Pending::Buffer;
-        self.structure.chi2(&self.buffer)
+        assembly.chi2(buffer)
     }
 
     /// Makes the last linearisation's H and gradient current.
@@ -311,8 +311,14 @@ impl Optimizer {
             Pending::Nothing => {}
             Pending::Buffer => {
                 let t = Instant::now();
-                self.structure
-                    .assemble(&self.buffer, &mut self.hessian, &mut self.gradient);
+                if let Some((assembly, buffer)) = &self.parallel {
+                    assembly.assemble(
+                        &self.structure,
+                        buffer,
+                        &mut self.hessian,
+                        &mut self.gradient,
+                    );
+                }
                 phases.assemble += since(t);
             }
             Pending::Trial => {

@@ -13,9 +13,6 @@ use cairn_core::Graph;
 use cairn_core::layout::{self, BlockTarget, Scatter};
 use faer::sparse::SymbolicSparseColMat;
 
-/// Entries of H summed per parallel work item, at least.
-const CHUNK_VALUES: usize = 4096;
-
 /// The Hessian's fixed structure for one graph and one set of fixed vertices.
 #[derive(Debug)]
 pub struct HessianStructure {
@@ -32,38 +29,20 @@ pub struct HessianStructure {
     pub block_pattern: SymbolicSparseColMat<usize>,
     /// Tangent dimension of each free vertex, in column order.
     pub block_dims: Vec<usize>,
-    /// Start of each factor group's region in the linearisation buffer.
-    pub group_offset: Vec<usize>,
-    /// Length of the linearisation buffer.
-    pub buffer_len: usize,
+    /// Each vertex's block (its position in column order), `u32::MAX` if fixed.
+    pub(crate) block_of: Vec<u32>,
     /// First scalar column of each block column (and `dim` at the end).
-    block_column: Vec<usize>,
+    pub(crate) block_column: Vec<usize>,
     /// Offset of each block's first row within each of its scalar columns.
-    row_offset: Vec<u32>,
-    /// The edges' blocks summed into each block of H, in edge order.
-    hessian_start: Vec<u32>,
-    hessian_sources: Vec<BlockSource>,
-    /// The edges' gradient segments summed into each vertex's, in edge order.
-    gradient_start: Vec<u32>,
-    gradient_sources: Vec<u32>,
-    /// First block column of each parallel work item, and the end.
-    chunks: Vec<usize>,
-    chi2_slots: Vec<u32>,
+    pub(crate) row_offset: Vec<u32>,
+    /// Number of edges.
+    edges: usize,
     /// Where every edge's blocks and gradient segments add into H and the
     /// gradient (for linearising straight into them on one thread), in
     /// edge order, and where each factor group's start in them.
     block_targets: Vec<BlockTarget>,
     column_targets: Vec<u32>,
     group_targets: Vec<[usize; 3]>,
-}
-
-/// One edge's contribution to a block of H: where its block starts in the
-/// linearisation buffer, and whether it lands transposed (its first vertex's
-/// columns come after its second's).
-#[derive(Clone, Copy, Debug, Default)]
-struct BlockSource {
-    offset: u32,
-    transposed: bool,
 }
 
 /// Groups `(key, item)` pairs by key with a counting sort, keeping each key's
@@ -191,59 +170,40 @@ impl HessianStructure {
             range.start + block_row_idx[range].binary_search(&r).unwrap_or(0)
         };
 
-        // Every edge's blocks and gradient segments, grouped by the block of H
-        // (or the vertex) they add to, in edge order.
-        let mut group_offset = Vec::new();
-        let mut buffer_len = 0usize;
-        let mut h_sources: Vec<(u32, BlockSource)> = Vec::new();
-        let mut g_sources: Vec<(u32, u32)> = Vec::new();
-        let mut chi2_slots = Vec::new();
-        // (block of H, transposed) of every edge block, u32::MAX if fixed.
+        // Where every edge's blocks and gradient segments add: (block of H,
+        // transposed) for each block, u32::MAX if a vertex is fixed.
         let mut targets: Vec<(u32, bool)> = Vec::new();
         let mut column_targets = Vec::new();
         let mut group_targets = Vec::new();
+        let (mut edges, mut buffer_len) = (0, 0);
         for g in graph.factor_groups() {
-            group_targets.push([targets.len(), column_targets.len(), chi2_slots.len()]);
-            group_offset.push(buffer_len);
-            let dims = g.vertex_dims();
-            let stride = layout::stride(dims);
-            if buffer_len + g.len() * stride >= u32::MAX as usize {
-                return Err(SolveError::TooLarge {
-                    entries: buffer_len + g.len() * stride,
-                });
-            }
+            group_targets.push([targets.len(), column_targets.len(), edges]);
+            edges += g.len();
+            buffer_len += g.len() * layout::stride(g.vertex_dims());
             for i in 0..g.len() {
-                let slot = buffer_len + i * stride;
                 let vs = g.vertices(i);
-                for p in 0..vs.len() {
-                    let bp = block_of[vs[p]];
-                    for q in p..vs.len() {
-                        let bq = block_of[vs[q]];
-                        if bp == u32::MAX || bq == u32::MAX {
-                            targets.push((u32::MAX, false));
-                            continue;
-                        }
-                        let source = BlockSource {
-                            offset: (slot + layout::block_offset(dims, p, q)) as u32,
-                            transposed: bp > bq,
-                        };
-                        let k = block_index(bp.min(bq), bp.max(bq)) as u32;
-                        h_sources.push((k, source));
-                        targets.push((k, bp > bq));
+                for (p, &vp) in vs.iter().enumerate() {
+                    let bp = block_of[vp];
+                    for &vq in &vs[p..] {
+                        let bq = block_of[vq];
+                        targets.push(match bp == u32::MAX || bq == u32::MAX {
+                            true => (u32::MAX, false),
+                            false => (block_index(bp.min(bq), bp.max(bq)) as u32, bp > bq),
+                        });
                     }
-                    if bp == u32::MAX {
-                        column_targets.push(u32::MAX);
-                        continue;
-                    }
-                    column_targets.push(column_of_block[bp as usize] as u32);
-                    g_sources.push((bp, (slot + layout::gradient_offset(dims, p)) as u32));
+                    column_targets.push(match bp {
+                        u32::MAX => u32::MAX,
+                        b => column_of_block[b as usize] as u32,
+                    });
                 }
-                chi2_slots.push((slot + stride - 1) as u32);
             }
-            buffer_len += g.len() * stride;
         }
-        let (h_start, h_sources) = group_by_key(block_row_idx.len(), &h_sources);
-        let (g_start, g_sources) = group_by_key(blocks, &g_sources);
+        // The parallel assembly addresses the buffer with u32 offsets.
+        if buffer_len >= u32::MAX as usize {
+            return Err(SolveError::TooLarge {
+                entries: buffer_len,
+            });
+        }
 
         // The scalar pattern: column by column; within a scalar column, block
         // row by block row (only the upper triangle of the diagonal block).
@@ -264,7 +224,6 @@ impl HessianStructure {
         let mut row_idx = Vec::with_capacity(nnz);
         let mut row_offset = vec![0u32; block_row_idx.len()];
         let mut diagonal = Vec::with_capacity(dim);
-        let mut chunks = vec![0];
         col_ptr.push(0usize);
         for c in 0..blocks {
             let dc = vdim[free[c]];
@@ -287,15 +246,7 @@ impl HessianStructure {
                 }
                 col_ptr.push(row_idx.len());
             }
-            let chunk_begin = col_ptr[column_of_block[*chunks.last().unwrap_or(&0)]];
-            if row_idx.len() - chunk_begin >= CHUNK_VALUES {
-                chunks.push(c + 1);
-            }
         }
-        if chunks.last() != Some(&blocks) {
-            chunks.push(blocks);
-        }
-        let as_u32 = |v: Vec<usize>| v.into_iter().map(|x| x as u32).collect::<Vec<u32>>();
         // Each block of H's entry (0, 0), and the rows above the diagonal in
         // its block column (the diagonal block's offset: it comes last).
         let mut block_first = vec![BlockTarget::NONE; block_row_idx.len()];
@@ -336,16 +287,10 @@ impl HessianStructure {
             block_pattern,
             block_dims: free.iter().map(|&v| vdim[v]).collect(),
             diagonal,
-            group_offset,
-            buffer_len,
+            block_of,
             block_column: column_of_block,
             row_offset,
-            hessian_start: as_u32(h_start),
-            hessian_sources: h_sources,
-            gradient_start: as_u32(g_start),
-            gradient_sources: g_sources,
-            chunks,
-            chi2_slots,
+            edges,
             block_targets,
             column_targets,
             group_targets,
@@ -355,84 +300,6 @@ impl HessianStructure {
     /// Number of stored entries of the upper triangle of H.
     pub fn nnz(&self) -> usize {
         self.pattern.row_idx().len()
-    }
-
-    /// Sums the edges' blocks into the values of H and their gradient
-    /// segments into the gradient. Block columns are split among threads;
-    /// each entry adds its sources in edge order, whatever the thread count.
-    pub fn assemble(&self, buffer: &[f64], values: &mut [f64], gradient: &mut [f64]) {
-        self.assemble_chunks(&self.chunks, buffer, values, gradient);
-    }
-
-    /// Assembles the block columns `chunks[0]..chunks[last]`, whose values
-    /// and gradient entries are `values` and `gradient`.
-    fn assemble_chunks(
-        &self,
-        chunks: &[usize],
-        buffer: &[f64],
-        values: &mut [f64],
-        gradient: &mut [f64],
-    ) {
-        if chunks.len() > 2 {
-            let mid = chunks.len() / 2;
-            let col_ptr = self.pattern.col_ptr();
-            let first = self.block_column[chunks[0]];
-            let split = self.block_column[chunks[mid]];
-            let (v1, v2) = values.split_at_mut(col_ptr[split] - col_ptr[first]);
-            let (g1, g2) = gradient.split_at_mut(split - first);
-            rayon::join(
-                || self.assemble_chunks(&chunks[..=mid], buffer, v1, g1),
-                || self.assemble_chunks(&chunks[mid..], buffer, v2, g2),
-            );
-        } else if let [begin, end] = *chunks {
-            self.assemble_columns(begin..end, buffer, values, gradient);
-        }
-    }
-
-    /// Assembles the block columns `range` (see [`Self::assemble_chunks`]).
-    fn assemble_columns(
-        &self,
-        range: std::ops::Range<usize>,
-        buffer: &[f64],
-        values: &mut [f64],
-        gradient: &mut [f64],
-    ) {
-        let col_ptr = self.pattern.col_ptr();
-        let (block_col_ptr, block_row_idx) =
-            (self.block_pattern.col_ptr(), self.block_pattern.row_idx());
-        let first = self.block_column[range.start];
-        let base = col_ptr[first];
-        // Entry by entry, each summing its sources in a register: the
-        // sources' blocks are read from memory once and then from cache.
-        for c in range {
-            let (cc, dc) = (self.block_column[c], self.block_dims[c]);
-            let blocks = block_col_ptr[c]..block_col_ptr[c + 1];
-            for (k, &r) in blocks.clone().zip(&block_row_idx[blocks]) {
-                let dr = self.block_dims[r];
-                let sources = &self.hessian_sources
-                    [self.hessian_start[k] as usize..self.hessian_start[k + 1] as usize];
-                for j in 0..dc {
-                    let height = if r == c { j + 1 } else { dr };
-                    let at = col_ptr[cc + j] - base + self.row_offset[k] as usize;
-                    for (i, v) in values[at..at + height].iter_mut().enumerate() {
-                        // A transposed block is stored dc × dr: entry (i, j) is its (j, i).
-                        let (straight, transposed) = (i + j * dr, j + i * dc);
-                        *v = sources
-                            .iter()
-                            .map(|s| {
-                                let within = if s.transposed { transposed } else { straight };
-                                buffer[s.offset as usize + within]
-                            })
-                            .sum();
-                    }
-                }
-            }
-            let sources = &self.gradient_sources
-                [self.gradient_start[c] as usize..self.gradient_start[c + 1] as usize];
-            for (i, g) in gradient[cc - first..cc - first + dc].iter_mut().enumerate() {
-                *g = sources.iter().map(|&o| buffer[o as usize + i]).sum();
-            }
-        }
     }
 
     /// Linearises every edge on the calling thread, adding its blocks
@@ -470,7 +337,7 @@ impl HessianStructure {
 
     /// Number of edges (χ² terms).
     pub fn num_edges(&self) -> usize {
-        self.chi2_slots.len()
+        self.edges
     }
 
     /// `out = H·x` for the symmetric H whose upper triangle is `values`.
@@ -487,18 +354,12 @@ impl HessianStructure {
             }
         }
     }
-
-    /// Total χ² stored in the buffer by the last linearisation (deterministic order).
-    pub fn chi2(&self, buffer: &[f64]) -> f64 {
-        cairn_core::factor::deterministic_sum(self.chi2_slots.len(), |k| {
-            buffer[self.chi2_slots[k] as usize]
-        })
-    }
 }
 
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::assembly::Assembly;
     use cairn_core::{EdgePriorSE2, EdgeSE2, EdgeSE2XY, EdgeSE3, RobustKernel, SE2, SE3};
     use nalgebra::{Matrix2, Matrix3, Matrix6, UnitQuaternion, Vector2, Vector3};
     use rand::rngs::StdRng;
@@ -580,20 +441,21 @@ mod tests {
                 graph.set_robust_kernel(e, kernel);
             }
             let s = HessianStructure::new(&graph, &fixed, orderings[k % 3]).unwrap();
-            let mut buffer = vec![0.0; s.buffer_len];
-            for (g, &start) in graph.factor_groups().iter().zip(&s.group_offset) {
+            let a = Assembly::new(&s, &graph);
+            let mut buffer = vec![0.0; a.buffer_len];
+            for (g, &start) in graph.factor_groups().iter().zip(&a.group_offset) {
                 let len = g.len() * layout::stride(g.vertex_dims());
                 g.linearize(graph.values(), &mut buffer[start..start + len]);
             }
             let (mut h1, mut g1) = (vec![f64::NAN; s.nnz()], vec![f64::NAN; s.dim]);
-            s.assemble(&buffer, &mut h1, &mut g1);
+            a.assemble(&s, &buffer, &mut h1, &mut g1);
             let (mut h2, mut g2) = (vec![f64::NAN; s.nnz()], vec![f64::NAN; s.dim]);
             let mut terms = vec![f64::NAN; s.num_edges()];
             let chi2 = s.linearize_into(&graph, &mut h2, &mut g2, &mut terms);
             let bits = |v: &[f64]| v.iter().map(|x| x.to_bits()).collect::<Vec<_>>();
             assert_eq!(bits(&h1), bits(&h2), "graph {k}: H");
             assert_eq!(bits(&g1), bits(&g2), "graph {k}: gradient");
-            assert_eq!(s.chi2(&buffer).to_bits(), chi2.to_bits(), "graph {k}: χ²");
+            assert_eq!(a.chi2(&buffer).to_bits(), chi2.to_bits(), "graph {k}: χ²");
             assert!(chi2 > 0.0);
         }
     }
@@ -644,11 +506,12 @@ mod tests {
         for (k, size) in [12; 200].into_iter().chain([3000; 4]).enumerate() {
             let (graph, fixed) = random_graph(&mut rng, size);
             let s = HessianStructure::new(&graph, &fixed, orderings[k % 3]).unwrap();
-            let mut buffer: Vec<f64> = (0..s.buffer_len).map(|_| rng.random()).collect();
+            let a = Assembly::new(&s, &graph);
+            let mut buffer: Vec<f64> = (0..a.buffer_len).map(|_| rng.random()).collect();
             // Every (row, column) of H, both triangles, and the gradient.
             let mut expected: HashMap<(usize, usize), f64> = HashMap::new();
             let mut expected_gradient = vec![0.0; s.dim];
-            for (g, &start) in graph.factor_groups().iter().zip(&s.group_offset) {
+            for (g, &start) in graph.factor_groups().iter().zip(&a.group_offset) {
                 let dims = g.vertex_dims();
                 let stride = layout::stride(dims);
                 for e in 0..g.len() {
@@ -682,7 +545,7 @@ mod tests {
             }
             let mut values = vec![f64::NAN; s.nnz()];
             let mut gradient = vec![f64::NAN; s.dim];
-            s.assemble(&buffer, &mut values, &mut gradient);
+            a.assemble(&s, &buffer, &mut values, &mut gradient);
             let (col_ptr, row_idx) = (s.pattern.col_ptr(), s.pattern.row_idx());
             let mut stored = HashSet::new();
             for j in 0..s.dim {
@@ -705,7 +568,7 @@ mod tests {
                 assert!((a - b).abs() < 1e-9);
             }
             if size > 1000 {
-                assert!(s.chunks.len() > 3, "{} parts", s.chunks.len() - 1);
+                assert!(a.chunks.len() > 3, "{} parts", a.chunks.len() - 1);
             }
         }
     }
