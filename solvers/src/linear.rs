@@ -10,7 +10,7 @@ use faer::linalg::cholesky::llt::factor::{LltError, LltRegularization};
 use faer::sparse::linalg::SupernodalThreshold;
 use faer::sparse::linalg::cholesky::{
     CholeskySymbolicParams, LltRef, SymbolicCholesky, SymbolicCholeskyRaw, SymmetricOrdering,
-    factorize_symbolic_cholesky,
+    factorize_symbolic_cholesky, supernodal::SymbolicSupernodalCholesky,
 };
 use faer::sparse::{SparseColMatRef, SymbolicSparseColMat, SymbolicSparseColMatRef};
 use faer::{Conj, MatMut, Par, Side};
@@ -201,6 +201,8 @@ enum Factor {
 struct FaerCholesky {
     symbolic: SymbolicCholesky<usize>,
     values: Vec<f64>,
+    /// Rows below one supernode's diagonal block, for the solves.
+    work: Vec<f64>,
     scratch: MemBuffer,
     par: Par,
 }
@@ -234,10 +236,77 @@ impl FaerCholesky {
     }
 
     fn solve_in_place(&mut self, rhs: &mut [f64]) {
+        if let (SymbolicCholeskyRaw::Supernodal(symbolic), None) =
+            (self.symbolic.raw(), self.symbolic.perm())
+        {
+            return supernodal_solve(symbolic, &self.values, rhs, &mut self.work);
+        }
         let llt = LltRef::new(&self.symbolic, &self.values);
         let n = rhs.len();
         let x = MatMut::from_column_major_slice_mut(rhs, n, 1);
         llt.solve_in_place_with_conj(Conj::No, x, self.par, MemStack::new(&mut self.scratch));
+    }
+}
+
+/// Solves L Lᵀ x = b in place for faer's supernodal factor L (unpermuted).
+/// faer's own solve multiplies each supernode through its general dense
+/// kernels, which on the small supernodes of pose graphs (3 to a few dozen
+/// columns) costs more than these loops. The rows below a supernode's
+/// diagonal block are gathered into `work` once, so the products with them
+/// run over contiguous memory.
+fn supernodal_solve(
+    symbolic: &SymbolicSupernodalCholesky<usize>,
+    values: &[f64],
+    x: &mut [f64],
+    work: &mut [f64],
+) {
+    let (begin, end) = (symbolic.supernode_begin(), symbolic.supernode_end());
+    let (val_ptr, row_ptr) = (symbolic.col_ptr_for_val(), symbolic.col_ptr_for_row_idx());
+    // Supernode s: its first column, its width, its values (column-major,
+    // the diagonal block's rows first) and the rows below the diagonal block.
+    let supernode = |s: usize| {
+        let (start, size) = (begin[s], end[s] - begin[s]);
+        let values = &values[val_ptr[s]..val_ptr[s + 1]];
+        let rows = values.len() / size;
+        let below = &symbolic.row_idx()[row_ptr[s]..][..rows - size];
+        (start, size, rows, values, below)
+    };
+    for s in 0..begin.len() {
+        let (start, size, rows, values, below) = supernode(s);
+        let tmp = &mut work[..below.len()];
+        tmp.fill(0.0);
+        for (j, column) in values.chunks_exact(rows).enumerate() {
+            let xj = x[start + j] / column[j];
+            x[start + j] = xj;
+            for (i, &l) in column[j + 1..size].iter().enumerate() {
+                x[start + j + 1 + i] -= l * xj;
+            }
+            for (t, &l) in tmp.iter_mut().zip(&column[size..]) {
+                *t += l * xj;
+            }
+        }
+        for (&r, &t) in below.iter().zip(tmp.iter()) {
+            x[r] -= t;
+        }
+    }
+    for s in (0..begin.len()).rev() {
+        let (start, size, rows, values, below) = supernode(s);
+        let tmp = &mut work[..below.len()];
+        for (t, &r) in tmp.iter_mut().zip(below) {
+            *t = x[r];
+        }
+        for (j, column) in values.chunks_exact(rows).enumerate().rev() {
+            let mut xj = x[start + j];
+            for (i, &l) in column[j + 1..size].iter().enumerate() {
+                xj -= l * x[start + j + 1 + i];
+            }
+            xj -= column[size..]
+                .iter()
+                .zip(tmp.iter())
+                .map(|(l, t)| l * t)
+                .sum::<f64>();
+            x[start + j] = xj / column[j];
+        }
     }
 }
 
@@ -311,8 +380,20 @@ impl SparseCholesky {
             symbolic.solve_in_place_scratch::<f64>(1, par),
         ]);
         let scratch = MemBuffer::try_new(req).map_err(|_| SolveError::OutOfMemory)?;
+        let work = match symbolic.raw() {
+            SymbolicCholeskyRaw::Supernodal(s) => (0..s.n_supernodes())
+                .map(|k| {
+                    let size = s.supernode_end()[k] - s.supernode_begin()[k];
+                    let values = s.col_ptr_for_val()[k + 1] - s.col_ptr_for_val()[k];
+                    values / size - size
+                })
+                .max()
+                .unwrap_or(0),
+            SymbolicCholeskyRaw::Simplicial(_) => 0,
+        };
         Ok(Factor::Faer(FaerCholesky {
             values: vec![0.0; symbolic.len_val()],
+            work: vec![0.0; work],
             symbolic,
             scratch,
             par,
