@@ -18,13 +18,19 @@ use serde::{Deserialize, Serialize};
 
 /// Multiple of faer's flops-per-non-zero threshold (40) above which
 /// [`Factorization::Auto`] goes supernodal, by measurement (BENCHMARKS.md).
-/// Flops per factor non-zero on the benchmark files: the 2D files 5–13
-/// (Cairn's simplicial factorisation faster: kitti_00 2.4×, ais2klinik 2×,
-/// dlr, 12.6, by 15%), the M3500 family 18.8 (supernodal even to 13%
-/// faster per solve), intel_slamcourse 31, parking-garage 27, city10000 42
-/// and the 3D spheres 130 and more (supernodal 1.2–1.8× faster, and more).
-/// At 0.4 (16) each file gets its faster kind.
-const AUTO_SUPERNODAL_THRESHOLD: f64 = 0.4;
+/// Flops per factor value on the benchmark files: the 2D files 5–13, the
+/// M3500 family 18.8, simulation-pose-pose 19.7, parking-garage 27,
+/// intel_slamcourse 31 (Cairn's simplicial factorisation, which forms each
+/// block's rows together, solves all of these faster: the M3500 family by
+/// 20–27%, parking-garage by 11%, intel_slamcourse by 9%); city10000 42,
+/// smallGrid3D 51 and the 3D spheres and torus 130–213 (faer's supernodal
+/// one 1.1–2.4× faster). At 0.9 (36) each file gets its faster kind.
+const AUTO_SUPERNODAL_THRESHOLD: f64 = 0.9;
+
+/// The same under [`Ordering::Amd`], where the simplicial factorisation is
+/// faer's (row by row): supernodal from 16 flops per value, by measurement
+/// (BENCHMARKS.md, session 13).
+const AUTO_SUPERNODAL_THRESHOLD_FAER: f64 = 0.4;
 
 /// faer's flops per factor value above which it goes supernodal.
 const FAER_SUPERNODAL_RATIO: f64 = 40.0;
@@ -33,7 +39,7 @@ const FAER_SUPERNODAL_RATIO: f64 = 40.0;
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize, Deserialize)]
 pub enum Factorization {
     /// Chosen from the flop count of the symbolic analysis: supernodal when
-    /// the factor has dense fronts (0.4 of faer's own threshold, by measurement).
+    /// the factor has dense fronts (from 36 flops per value, by measurement).
     #[default]
     Auto,
     /// Column by column (Cairn's, on the vertex blocks; faer's under
@@ -325,7 +331,7 @@ impl SparseCholesky {
     ) -> Result<Self, SolveError> {
         let factor = if config.ordering == Ordering::Amd {
             let threshold = match config.factorization {
-                Factorization::Auto => SupernodalThreshold(AUTO_SUPERNODAL_THRESHOLD),
+                Factorization::Auto => SupernodalThreshold(AUTO_SUPERNODAL_THRESHOLD_FAER),
                 Factorization::Simplicial => SupernodalThreshold::FORCE_SIMPLICIAL,
                 Factorization::Supernodal => SupernodalThreshold::FORCE_SUPERNODAL,
             };

@@ -180,7 +180,8 @@ impl SimplicialCholesky {
             values: vec![0.0; row_idx.len()],
             row_idx,
             inverse_diagonal: vec![0.0; n],
-            work: vec![0.0; n],
+            // Up to 6 rows formed at once.
+            work: vec![0.0; 6 * n],
             last: vec![0; n],
             symbolic,
         })
@@ -192,11 +193,42 @@ impl SimplicialCholesky {
     }
 
     /// Up-looking factorisation of `h` (the upper triangle, in the pattern
-    /// the analysis was given): row k of L solves a triangular system with
-    /// the rows above it, formed in `work` from column k of H.
+    /// the analysis was given): the rows of L of each block solve a
+    /// triangular system with the rows above them, formed in `work` from the
+    /// block's columns of H. A block's rows share their pattern, so they are
+    /// formed together (up to 6), each value of L above them read once for
+    /// all of them; the operations, and so the bits, are those of forming
+    /// the rows one by one, as larger blocks are.
     pub fn factorize(
         &mut self,
         h: SparseColMatRef<'_, usize, f64>,
+    ) -> Result<(), NotPositiveDefinite> {
+        let s = &self.symbolic;
+        self.last.copy_from_slice(&s.col_ptr[..s.dim()]);
+        for kb in 0..s.block_column.len() - 1 {
+            let result = match self.symbolic.rows(kb as u32).len() {
+                1 => self.block_rows::<1>(h, kb),
+                2 => self.block_rows::<2>(h, kb),
+                3 => self.block_rows::<3>(h, kb),
+                4 => self.block_rows::<4>(h, kb),
+                5 => self.block_rows::<5>(h, kb),
+                6 => self.block_rows::<6>(h, kb),
+                _ => self.rows_one_by_one(h, kb),
+            };
+            if result.is_err() {
+                self.work.fill(0.0);
+                return result;
+            }
+        }
+        Ok(())
+    }
+
+    /// Rows of block `kb` (of size B) together: row k + r's entry in column
+    /// i of L is formed in `work[i·B + r]`.
+    fn block_rows<const B: usize>(
+        &mut self,
+        h: SparseColMatRef<'_, usize, f64>,
+        kb: usize,
     ) -> Result<(), NotPositiveDefinite> {
         let Self {
             symbolic: s,
@@ -206,42 +238,111 @@ impl SimplicialCholesky {
             work,
             last,
         } = self;
-        last.copy_from_slice(&s.col_ptr[..s.dim()]);
-        for kb in 0..s.block_column.len() - 1 {
-            let block = s.rows(kb as u32);
-            let above = &s.row_blocks[s.row_start[kb]..s.row_start[kb + 1]];
-            for k in block.clone() {
-                for (&i, &v) in h.row_idx_of_col_raw(k).iter().zip(h.val_of_col(k)) {
-                    work[i] += v;
-                }
-                let mut d = work[k];
-                work[k] = 0.0;
-                // Row k's columns ascending: the blocks above, then the
-                // diagonal block's columns left of k. Column j's rows above
-                // k are final, and so is work[j] once every column before j
-                // has been subtracted.
-                let columns = above.iter().flat_map(|&j| s.rows(j)).chain(block.start..k);
-                for j in columns {
-                    last[j] += 1;
-                    let (done, next) = values.split_at_mut(last[j]);
-                    let top = s.col_ptr[j];
-                    let lkj = work[j] * inverse_diagonal[j];
-                    work[j] = 0.0;
-                    for (&i, &lij) in row_idx[top + 1..last[j]].iter().zip(&done[top + 1..]) {
-                        work[i as usize] -= lij * lkj;
-                    }
-                    d -= lkj * lkj;
-                    next[0] = lkj;
-                }
-                // Not `d <= 0.0`: a NaN pivot fails too.
-                if d.partial_cmp(&0.0) != Some(std::cmp::Ordering::Greater) {
-                    work.fill(0.0);
-                    return Err(NotPositiveDefinite { pivot: k + 1 });
-                }
-                let diagonal = d.sqrt();
-                values[s.col_ptr[k]] = diagonal;
-                inverse_diagonal[k] = diagonal.recip();
+        let k = s.block_column[kb];
+        for r in 0..B {
+            for (&i, &v) in h.row_idx_of_col_raw(k + r).iter().zip(h.val_of_col(k + r)) {
+                work[i * B + r] += v;
             }
+        }
+        // The diagonal block, upper triangle: a[t][r] for row k + r, column k + t.
+        let mut a = [[0.0; B]; B];
+        for (t, at) in a.iter_mut().enumerate() {
+            for r in t..B {
+                at[r] = std::mem::take(&mut work[(k + t) * B + r]);
+            }
+        }
+        // The columns of the blocks above, ascending: column j's rows above
+        // the block are final, and so is work[j] once every column before j
+        // has been subtracted.
+        let above = &s.row_blocks[s.row_start[kb]..s.row_start[kb + 1]];
+        for j in above.iter().flat_map(|&jb| s.rows(jb)) {
+            let mut l = [0.0; B];
+            for (lr, w) in l.iter_mut().zip(&mut work[j * B..][..B]) {
+                *lr = std::mem::take(w) * inverse_diagonal[j];
+            }
+            let (top, end) = (s.col_ptr[j] + 1, last[j] + 1);
+            for (&i, &lij) in row_idx[top..end].iter().zip(&values[top..end]) {
+                for (w, lr) in work[i as usize * B..][..B].iter_mut().zip(&l) {
+                    *w -= lij * lr;
+                }
+            }
+            for t in 0..B {
+                for r in t..B {
+                    a[t][r] -= l[t] * l[r];
+                }
+            }
+            values[end..end + B].copy_from_slice(&l);
+            last[j] += B;
+        }
+        // The diagonal block's own columns.
+        let mut lb = [[0.0; B]; B];
+        for r in 0..B {
+            for t in 0..r {
+                let lrt = a[t][r] * inverse_diagonal[k + t];
+                lb[r][t] = lrt;
+                for i in t + 1..r {
+                    a[i][r] -= lb[i][t] * lrt;
+                }
+                a[r][r] -= lrt * lrt;
+                values[s.col_ptr[k + t] + r - t] = lrt;
+            }
+            let d = a[r][r];
+            // Not `d <= 0.0`: a NaN pivot fails too.
+            if d.partial_cmp(&0.0) != Some(std::cmp::Ordering::Greater) {
+                return Err(NotPositiveDefinite { pivot: k + r + 1 });
+            }
+            let diagonal = d.sqrt();
+            values[s.col_ptr[k + r]] = diagonal;
+            inverse_diagonal[k + r] = diagonal.recip();
+        }
+        for t in 0..B {
+            last[k + t] = s.col_ptr[k + t] + B - 1 - t;
+        }
+        Ok(())
+    }
+
+    /// Rows of block `kb` one by one (blocks larger than 6).
+    fn rows_one_by_one(
+        &mut self,
+        h: SparseColMatRef<'_, usize, f64>,
+        kb: usize,
+    ) -> Result<(), NotPositiveDefinite> {
+        let Self {
+            symbolic: s,
+            row_idx,
+            values,
+            inverse_diagonal,
+            work,
+            last,
+        } = self;
+        let block = s.rows(kb as u32);
+        let above = &s.row_blocks[s.row_start[kb]..s.row_start[kb + 1]];
+        for k in block.clone() {
+            for (&i, &v) in h.row_idx_of_col_raw(k).iter().zip(h.val_of_col(k)) {
+                work[i] += v;
+            }
+            let mut d = std::mem::take(&mut work[k]);
+            // Row k's columns ascending: the blocks above, then the
+            // diagonal block's columns left of k.
+            let columns = above.iter().flat_map(|&j| s.rows(j)).chain(block.start..k);
+            for j in columns {
+                last[j] += 1;
+                let (done, next) = values.split_at_mut(last[j]);
+                let top = s.col_ptr[j];
+                let lkj = std::mem::take(&mut work[j]) * inverse_diagonal[j];
+                for (&i, &lij) in row_idx[top + 1..last[j]].iter().zip(&done[top + 1..]) {
+                    work[i as usize] -= lij * lkj;
+                }
+                d -= lkj * lkj;
+                next[0] = lkj;
+            }
+            // Not `d <= 0.0`: a NaN pivot fails too.
+            if d.partial_cmp(&0.0) != Some(std::cmp::Ordering::Greater) {
+                return Err(NotPositiveDefinite { pivot: k + 1 });
+            }
+            let diagonal = d.sqrt();
+            values[s.col_ptr[k]] = diagonal;
+            inverse_diagonal[k] = diagonal.recip();
         }
         Ok(())
     }
@@ -285,7 +386,8 @@ mod tests {
     use rand::rngs::StdRng;
     use rand::{Rng, SeedableRng};
 
-    /// A random H with dense blocks of sizes 1–6: a chain of blocks plus
+    /// A random H with dense blocks of sizes 1–8 (rows formed together up
+    /// to 6, one by one above): a chain of blocks plus
     /// random couplings, diagonally dominant. Returns the block pattern,
     /// the sizes, the scalar pattern and its values (upper triangles).
     fn random_h(
@@ -297,7 +399,7 @@ mod tests {
         Vec<f64>,
     ) {
         let nb: usize = rng.random_range(1..40);
-        let dims: Vec<usize> = (0..nb).map(|_| rng.random_range(1..=6)).collect();
+        let dims: Vec<usize> = (0..nb).map(|_| rng.random_range(1..=8)).collect();
         // Each block with itself and the one before.
         let mut rows: Vec<Vec<usize>> = (0..nb).map(|c| vec![c.saturating_sub(1), c]).collect();
         for _ in 0..nb {
