@@ -283,11 +283,13 @@ def main():
 
     os.makedirs(os.path.dirname(a.jsonl), exist_ok=True)
     # Runs kept from an earlier --jsonl: all of them (--render), or all but
-    # the (file, algorithm) pairs rerun now (--replace).
+    # the (file, algorithm, library) triples rerun now (--replace; with
+    # --peers, the other peers' runs of those files stay).
     kept = []
     if a.render or a.replace:
         kept = [json.loads(line) for line in open(a.jsonl)]
-        kept = [r for r in kept if a.render or r["file"] not in files or r["algo"] not in algos]
+        kept = [r for r in kept if a.render or r["file"] not in files or r["algo"] not in algos
+                or r["lib"] not in ["cairn"] + peers]
     # The peers run now, and the peers in the tables (those run now or kept).
     shown = [p for p in PEERS_ALL
              if (p in peers and not a.render) or any(r["lib"] == p for r in kept)]

@@ -135,6 +135,18 @@ pub struct SolverConfig {
     pub dogleg: DoglegConfig,
     /// Linear solver options.
     pub linear: LinearSolverConfig,
+    /// Linearise in parallel, into a buffer summed afterwards, when the
+    /// edges' blocks hold at least this many scalars and the thread pool has
+    /// more than one thread; below it, one thread adds every edge's blocks
+    /// straight into H, which is faster on small graphs. Same bits either
+    /// way. Default 2·10⁶ (by measurement on 2 cores, BENCHMARKS.md: about
+    /// 60,000 2D or 16,000 3D pose edges); lower it on many cores.
+    #[serde(default = "default_parallel_min_values")]
+    pub parallel_min_values: usize,
+}
+
+fn default_parallel_min_values() -> usize {
+    2_000_000
 }
 
 impl Default for SolverConfig {
@@ -148,6 +160,7 @@ impl Default for SolverConfig {
             lm: LevenbergMarquardtConfig::default(),
             dogleg: DoglegConfig::default(),
             linear: LinearSolverConfig::default(),
+            parallel_min_values: default_parallel_min_values(),
         }
     }
 }

@@ -255,9 +255,10 @@ impl Optimizer {
     /// Linearises every edge at the graph's values and returns χ²; with
     /// `keep_current`, H and the gradient keep the current point's until
     /// [`Self::accept`] makes the new point's current (a step may still be
-    /// rejected). On one thread the edges add straight into H (or the trial
-    /// copy); on more they write their blocks into the buffer in parallel,
-    /// and `accept` sums them. Both give the same bits.
+    /// rejected). On one thread, or on a graph too small for threads to pay
+    /// off, the edges add straight into H (or the trial copy); otherwise they
+    /// write their blocks into the buffer in parallel, and `accept` sums
+    /// them. Both give the same bits.
     fn linearize_trial(
         &mut self,
         graph: &Graph,
@@ -265,7 +266,8 @@ impl Optimizer {
         keep_current: bool,
     ) -> f64 {
         let t = Instant::now();
-        let chi2 = if rayon::current_num_threads() > 1 {
+        let parallel = self.structure.buffer_len >= self.config.parallel_min_values;
+        let chi2 = if parallel && rayon::current_num_threads() > 1 {
             self.linearize_parallel(graph)
         } else {
             let (hessian, gradient) = if keep_current {

@@ -37,6 +37,8 @@ pub struct HessianStructure {
     pub(crate) row_offset: Vec<u32>,
     /// Number of edges.
     edges: usize,
+    /// Scalars the edges' blocks fill when linearised into a buffer.
+    pub(crate) buffer_len: usize,
     /// Where every edge's blocks and gradient segments add into H and the
     /// gradient (for linearising straight into them on one thread), in
     /// edge order, and where each factor group's start in them.
@@ -291,6 +293,7 @@ impl HessianStructure {
             block_column: column_of_block,
             row_offset,
             edges,
+            buffer_len,
             block_targets,
             column_targets,
             group_targets,
