@@ -24,13 +24,22 @@ use serde::{Deserialize, Serialize};
 /// block's rows together, solves all of these faster: the M3500 family by
 /// 20–27%, parking-garage by 11%, intel_slamcourse by 9%); city10000 42,
 /// smallGrid3D 51 and the 3D spheres and torus 130–213 (faer's supernodal
-/// one 1.1–2.4× faster). At 0.9 (36) each file gets its faster kind.
+/// one 1.1–2.4× faster). At 0.9 (36) each file gets its faster kind. Large
+/// factors fall out of cache row by row: on the generated Manhattan worlds
+/// (above 16 flops per value) simplicial factorises 10⁴ poses (0.46 million
+/// values) as fast, 3·10⁴ (3 million) 25% slower and 10⁵ (14 million) 4×
+/// slower, so from [`AUTO_LARGE_FACTOR`] values the threshold is
+/// [`AUTO_SUPERNODAL_THRESHOLD_LOW`].
 const AUTO_SUPERNODAL_THRESHOLD: f64 = 0.9;
 
-/// The same under [`Ordering::Amd`], where the simplicial factorisation is
-/// faer's (row by row): supernodal from 16 flops per value, by measurement
-/// (BENCHMARKS.md, session 13).
-const AUTO_SUPERNODAL_THRESHOLD_FAER: f64 = 0.4;
+/// Factor values from which [`Factorization::Auto`] goes supernodal from 16
+/// flops per value instead of 36.
+const AUTO_LARGE_FACTOR: usize = 1_000_000;
+
+/// The same (16 flops per value) for factors of [`AUTO_LARGE_FACTOR`] values
+/// or more, and under [`Ordering::Amd`], where the simplicial factorisation
+/// is faer's, row by row (by measurement, BENCHMARKS.md, session 13).
+const AUTO_SUPERNODAL_THRESHOLD_LOW: f64 = 0.4;
 
 /// faer's flops per factor value above which it goes supernodal.
 const FAER_SUPERNODAL_RATIO: f64 = 40.0;
@@ -39,7 +48,8 @@ const FAER_SUPERNODAL_RATIO: f64 = 40.0;
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize, Deserialize)]
 pub enum Factorization {
     /// Chosen from the flop count of the symbolic analysis: supernodal when
-    /// the factor has dense fronts (from 36 flops per value, by measurement).
+    /// the factor has dense fronts (from 36 flops per value, 16 for factors of
+    /// a million values or more, by measurement).
     #[default]
     Auto,
     /// Column by column (Cairn's, on the vertex blocks; faer's under
@@ -331,7 +341,7 @@ impl SparseCholesky {
     ) -> Result<Self, SolveError> {
         let factor = if config.ordering == Ordering::Amd {
             let threshold = match config.factorization {
-                Factorization::Auto => SupernodalThreshold(AUTO_SUPERNODAL_THRESHOLD_FAER),
+                Factorization::Auto => SupernodalThreshold(AUTO_SUPERNODAL_THRESHOLD_LOW),
                 Factorization::Simplicial => SupernodalThreshold::FORCE_SIMPLICIAL,
                 Factorization::Supernodal => SupernodalThreshold::FORCE_SUPERNODAL,
             };
@@ -344,7 +354,10 @@ impl SparseCholesky {
                 }
                 Factorization::Auto => {
                     let symbolic = SimplicialSymbolic::analyze(block_pattern, block_dims)?;
-                    let limit = AUTO_SUPERNODAL_THRESHOLD * FAER_SUPERNODAL_RATIO;
+                    let limit = match symbolic.len_val() < AUTO_LARGE_FACTOR {
+                        true => AUTO_SUPERNODAL_THRESHOLD,
+                        false => AUTO_SUPERNODAL_THRESHOLD_LOW,
+                    } * FAER_SUPERNODAL_RATIO;
                     (symbolic.flops_per_value() <= limit).then_some(symbolic)
                 }
             };

@@ -307,8 +307,8 @@ impl HessianStructure {
 
     /// Linearises every edge on the calling thread, adding its blocks
     /// straight into `values` (H) and `gradient`, and returns χ²: the same
-    /// bits as [`cairn_core::FactorGroup::linearize`] and [`Self::assemble`],
-    /// without the buffer between them.
+    /// bits as [`cairn_core::FactorGroup::linearize`] and
+    /// [`crate::assembly::Assembly::assemble`], without the buffer between.
     pub fn linearize_into(
         &self,
         graph: &Graph,
