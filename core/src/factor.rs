@@ -23,6 +23,70 @@ pub fn deterministic_sum(n: usize, f: impl Fn(usize) -> f64 + Sync) -> f64 {
     partial.iter().sum()
 }
 
+/// Where an edge's linearisation goes, block by block as it is computed:
+/// its slot of the buffer (see [`crate::layout`]) or straight into H.
+trait Sink {
+    /// The edge's k-th block (a, b), a ≤ b, of JᵀΩJ, in slot order.
+    fn block<const R: usize, const C: usize>(&mut self, k: usize, b: &SMatrix<f64, R, C>);
+    /// Vertex a's gradient segment JₐᵀΩe.
+    fn gradient<const R: usize>(&mut self, a: usize, g: &SVector<f64, R>);
+    /// The edge's objective contribution.
+    fn chi2(&mut self, chi2: f64);
+}
+
+/// An edge's slot of the buffer, with the offsets of its blocks and segments.
+struct SlotSink<'a> {
+    slot: &'a mut [f64],
+    blocks: &'a [usize],
+    gradients: &'a [usize],
+}
+
+impl Sink for SlotSink<'_> {
+    #[inline(always)]
+    fn block<const R: usize, const C: usize>(&mut self, k: usize, b: &SMatrix<f64, R, C>) {
+        self.slot[self.blocks[k]..][..R * C].copy_from_slice(b.as_slice());
+    }
+    #[inline(always)]
+    fn gradient<const R: usize>(&mut self, a: usize, g: &SVector<f64, R>) {
+        self.slot[self.gradients[a]..][..R].copy_from_slice(g.as_slice());
+    }
+    #[inline(always)]
+    fn chi2(&mut self, chi2: f64) {
+        let last = self.slot.len() - 1;
+        self.slot[last] = chi2;
+    }
+}
+
+/// One edge's targets in H and the gradient (its blocks (a, a) are
+/// diagonal blocks of H).
+struct HessianSink<'a> {
+    hessian: &'a mut [f64],
+    gradient: &'a mut [f64],
+    blocks: &'a [layout::BlockTarget],
+    columns: &'a [u32],
+    chi2: &'a mut f64,
+    diagonal: &'a [bool],
+}
+
+impl Sink for HessianSink<'_> {
+    #[inline(always)]
+    fn block<const R: usize, const C: usize>(&mut self, k: usize, b: &SMatrix<f64, R, C>) {
+        if self.diagonal[k] {
+            self.blocks[k].add_diagonal(self.hessian, b);
+        } else {
+            self.blocks[k].add(self.hessian, b);
+        }
+    }
+    #[inline(always)]
+    fn gradient<const R: usize>(&mut self, a: usize, g: &SVector<f64, R>) {
+        layout::add_gradient(self.gradient, self.columns[a], g);
+    }
+    #[inline(always)]
+    fn chi2(&mut self, chi2: f64) {
+        *self.chi2 = chi2;
+    }
+}
+
 /// The object-safe view of a group of edges of one type.
 pub trait FactorGroup: Send + Sync + 'static {
     /// The edge type's name (g2o tag style).
@@ -145,6 +209,17 @@ impl<T: UnaryEdge<E, D>, const E: usize, const D: usize> UnaryGroup<T, E, D> {
         let e = en.edge.error(&x);
         (x, e)
     }
+    /// Linearises edge `i` (`en`) into `sink`: JᵀΩJ, JᵀΩe, χ².
+    #[inline(always)]
+    fn emit(&self, i: usize, en: &Entry<T, E, 1>, values: &Values, sink: &mut impl Sink) {
+        let (x, e) = self.eval(i, values);
+        let j = en.edge.jacobian(&x);
+        let (chi2, weight) = en.robust(&e);
+        let oj = en.information * j * weight;
+        sink.block(0, &(j.transpose() * oj));
+        sink.gradient(0, &(oj.transpose() * e));
+        sink.chi2(chi2);
+    }
 }
 
 impl<T: UnaryEdge<E, D>, const E: usize, const D: usize> Default for UnaryGroup<T, E, D> {
@@ -192,30 +267,32 @@ impl<T: UnaryEdge<E, D>, const E: usize, const D: usize> FactorGroup for UnaryGr
     }
     fn linearize(&self, values: &Values, out: &mut [f64]) {
         let stride = layout::stride(&self.dims);
-        let g0 = layout::gradient_offset(&self.dims, 0);
+        let gradients = [layout::gradient_offset(&self.dims, 0)];
         out.par_chunks_mut(stride)
             .zip(self.entries.par_iter())
             .with_min_len(CHUNK)
             .enumerate()
             .for_each(|(i, (slot, en))| {
-                let (x, e) = self.eval(i, values);
-                let j = en.edge.jacobian(&x);
-                let (chi2, weight) = en.robust(&e);
-                let oj = en.information * j * weight;
-                slot[..D * D].copy_from_slice((j.transpose() * oj).as_slice());
-                slot[g0..g0 + D].copy_from_slice((oj.transpose() * e).as_slice());
-                slot[stride - 1] = chi2;
+                let (blocks, gradients) = (&[0][..], &gradients[..]);
+                let mut sink = SlotSink {
+                    slot,
+                    blocks,
+                    gradients,
+                };
+                self.emit(i, en, values, &mut sink);
             });
     }
     fn linearize_into(&self, values: &Values, out: Scatter<'_>) {
-        for (i, en) in self.entries.iter().enumerate() {
-            let (x, e) = self.eval(i, values);
-            let j = en.edge.jacobian(&x);
-            let (chi2, weight) = en.robust(&e);
-            let oj = en.information * j * weight;
-            out.blocks[i].add_diagonal(out.hessian, &(j.transpose() * oj));
-            layout::add_gradient(out.gradient, out.columns[i], &(oj.transpose() * e));
-            out.chi2[i] = chi2;
+        for (i, (en, chi2)) in self.entries.iter().zip(out.chi2.iter_mut()).enumerate() {
+            let mut sink = HessianSink {
+                hessian: &mut *out.hessian,
+                gradient: &mut *out.gradient,
+                blocks: &out.blocks[i..=i],
+                columns: &out.columns[i..=i],
+                chi2,
+                diagonal: &[true],
+            };
+            self.emit(i, en, values, &mut sink);
         }
     }
     fn propagate(&self, _i: usize, _known: usize, _values: &mut Values) -> Option<usize> {
@@ -258,6 +335,23 @@ impl<T: BinaryEdge<E, D1, D2>, const E: usize, const D1: usize, const D2: usize>
         let x2 = values.get::<T::V2, D2>(en.vertices[1]);
         let e = en.edge.error(&x1, &x2);
         (x1, x2, e)
+    }
+    /// Linearises `en` into `sink`: the blocks (1, 1), (1, 2), (2, 2) of
+    /// JᵀΩJ, each vertex's JᵀΩe, χ².
+    #[inline(always)]
+    fn emit(en: &Entry<T, E, 2>, values: &Values, sink: &mut impl Sink) {
+        let x1 = values.get::<T::V1, D1>(en.vertices[0]);
+        let x2 = values.get::<T::V2, D2>(en.vertices[1]);
+        let (e, j1, j2) = en.edge.linearize(&x1, &x2);
+        let (chi2, weight) = en.robust(&e);
+        let oj1 = en.information * j1 * weight;
+        let oj2 = en.information * j2 * weight;
+        sink.block(0, &(j1.transpose() * oj1));
+        sink.block(1, &(j1.transpose() * oj2));
+        sink.block(2, &(j2.transpose() * oj2));
+        sink.gradient(0, &(oj1.transpose() * e));
+        sink.gradient(1, &(oj2.transpose() * e));
+        sink.chi2(chi2);
     }
 }
 
@@ -310,42 +404,39 @@ impl<T: BinaryEdge<E, D1, D2>, const E: usize, const D1: usize, const D2: usize>
     }
     fn linearize(&self, values: &Values, out: &mut [f64]) {
         let stride = layout::stride(&self.dims);
-        let (o12, o22) = (D1 * D1, D1 * D1 + D1 * D2);
+        let blocks = [0, D1 * D1, D1 * D1 + D1 * D2];
         let g1 = layout::gradient_offset(&self.dims, 0);
-        let g2 = g1 + D1;
+        let gradients = [g1, g1 + D1];
         out.par_chunks_mut(stride)
             .zip(self.entries.par_iter())
             .with_min_len(CHUNK)
             .for_each(|(slot, en)| {
-                let x1 = values.get::<T::V1, D1>(en.vertices[0]);
-                let x2 = values.get::<T::V2, D2>(en.vertices[1]);
-                let (e, j1, j2) = en.edge.linearize(&x1, &x2);
-                let (chi2, weight) = en.robust(&e);
-                let oj1 = en.information * j1 * weight;
-                let oj2 = en.information * j2 * weight;
-                slot[..o12].copy_from_slice((j1.transpose() * oj1).as_slice());
-                slot[o12..o22].copy_from_slice((j1.transpose() * oj2).as_slice());
-                slot[o22..g1].copy_from_slice((j2.transpose() * oj2).as_slice());
-                slot[g1..g2].copy_from_slice((oj1.transpose() * e).as_slice());
-                slot[g2..g2 + D2].copy_from_slice((oj2.transpose() * e).as_slice());
-                slot[stride - 1] = chi2;
+                let (blocks, gradients) = (&blocks[..], &gradients[..]);
+                Self::emit(
+                    en,
+                    values,
+                    &mut SlotSink {
+                        slot,
+                        blocks,
+                        gradients,
+                    },
+                );
             });
     }
     fn linearize_into(&self, values: &Values, out: Scatter<'_>) {
         let targets = out.blocks.chunks_exact(3).zip(out.columns.chunks_exact(2));
-        for ((en, (t, c)), chi2_out) in self.entries.iter().zip(targets).zip(out.chi2.iter_mut()) {
-            let x1 = values.get::<T::V1, D1>(en.vertices[0]);
-            let x2 = values.get::<T::V2, D2>(en.vertices[1]);
-            let (e, j1, j2) = en.edge.linearize(&x1, &x2);
-            let (chi2, weight) = en.robust(&e);
-            let oj1 = en.information * j1 * weight;
-            let oj2 = en.information * j2 * weight;
-            t[0].add_diagonal(out.hessian, &(j1.transpose() * oj1));
-            t[1].add(out.hessian, &(j1.transpose() * oj2));
-            t[2].add_diagonal(out.hessian, &(j2.transpose() * oj2));
-            layout::add_gradient(out.gradient, c[0], &(oj1.transpose() * e));
-            layout::add_gradient(out.gradient, c[1], &(oj2.transpose() * e));
-            *chi2_out = chi2;
+        for ((en, (blocks, columns)), chi2) in
+            self.entries.iter().zip(targets).zip(out.chi2.iter_mut())
+        {
+            let mut sink = HessianSink {
+                hessian: &mut *out.hessian,
+                gradient: &mut *out.gradient,
+                blocks,
+                columns,
+                chi2,
+                diagonal: &[true, false, true],
+            };
+            Self::emit(en, values, &mut sink);
         }
     }
     fn propagate(&self, i: usize, known: usize, values: &mut Values) -> Option<usize> {

@@ -92,13 +92,19 @@ impl BlockTarget {
         }
     }
 
-    /// Adds the upper triangle of the diagonal block `b` (an edge's block (a, a)).
+    /// Adds the upper triangle of the diagonal block `b` (an edge's block
+    /// (a, a); square).
     #[inline]
-    pub fn add_diagonal<const D: usize>(&self, hessian: &mut [f64], b: &SMatrix<f64, D, D>) {
+    pub fn add_diagonal<const R: usize, const C: usize>(
+        &self,
+        hessian: &mut [f64],
+        b: &SMatrix<f64, R, C>,
+    ) {
+        debug_assert_eq!(R, C);
         if self.first == u32::MAX {
             return;
         }
-        for j in 0..D {
+        for j in 0..C {
             let col = &mut hessian[self.column(j)..][..=j];
             for (i, h) in col.iter_mut().enumerate() {
                 *h += b[(i, j)];
