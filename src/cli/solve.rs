@@ -119,7 +119,9 @@ pub struct SolveArgs {
     /// Fill-reducing ordering.
     #[arg(long, value_enum, default_value = "block-amd")]
     ordering: OrderingName,
-    /// Worker threads (0: one per core).
+    /// Worker threads (0: one per core). Only graphs with millions of
+    /// Jacobian-block entries are linearised in parallel; results are the
+    /// same for any number.
     #[arg(long, default_value_t = 0)]
     threads: usize,
     /// Print the marginal covariances of these vertex ids (comma-separated) at
