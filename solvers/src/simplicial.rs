@@ -534,7 +534,6 @@ mod tests {
         }
     }
 
-    /// A non-positive pivot is reported at its 1-based column, as faer does.
     /// The supernodal factor's solve (Cairn's loops over faer's factor)
     /// gives the simplicial factor's solution, and H x = b, on random block
     /// matrices of up to a few hundred columns.
@@ -585,6 +584,7 @@ mod tests {
         assert!(widest > 100);
     }
 
+    /// A non-positive pivot is reported at its 1-based column, as faer does.
     #[test]
     fn a_non_positive_pivot_names_its_column() {
         // Three 1×1 blocks in a chain; column 1's pivot is 1 - 2² < 0.
@@ -595,6 +595,16 @@ mod tests {
         let values = [1.0, 2.0, 1.0, 0.0, 1.0];
         let h = SparseColMatRef::new(blocks.as_ref(), &values);
         assert_eq!(chol.factorize(h), Err(NotPositiveDefinite { pivot: 2 }));
+        // Inside one 3×3 block (its rows formed together): the same pivot.
+        let block = SymbolicSparseColMat::new_checked(1, 1, vec![0, 1], None, vec![0]);
+        let scalar =
+            SymbolicSparseColMat::new_checked(3, 3, vec![0, 1, 3, 6], None, vec![0, 0, 1, 0, 1, 2]);
+        let symbolic = SimplicialSymbolic::analyze(block.as_ref(), &[3]).unwrap();
+        let mut chol = SimplicialCholesky::new(symbolic).unwrap();
+        let values = [1.0, 2.0, 1.0, 0.0, 0.0, 1.0];
+        let h = SparseColMatRef::new(scalar.as_ref(), &values);
+        assert_eq!(chol.factorize(h), Err(NotPositiveDefinite { pivot: 2 }));
+        assert!(chol.work.iter().all(|&w| w == 0.0));
     }
 
     /// faer's flop count (its column counts give the same ratio).
