@@ -1,5 +1,8 @@
-//! Layout of one edge's slot in the linearisation buffer, shared by the factor
-//! groups (which write it) and the solvers (which gather from it).
+//! Where an edge's linearisation goes, shared by the factor groups (which
+//! write it) and the solvers (which lay it out): its slot in the
+//! linearisation buffer, summed into H afterwards when edges are linearised
+//! in parallel, or its [`BlockTarget`]s in H itself when one thread adds
+//! them there directly ([`Scatter`]).
 //!
 //! For an edge on vertices with tangent dimensions `dims`, the slot holds the
 //! upper block triangle of JᵀΩJ — blocks (a, b) with a ≤ b in the edge's vertex
