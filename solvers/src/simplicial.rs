@@ -307,31 +307,24 @@ impl SimplicialCholesky {
         h: SparseColMatRef<'_, usize, f64>,
         kb: usize,
     ) -> Result<(), NotPositiveDefinite> {
-        let Self {
-            symbolic: s,
-            row_idx,
-            values,
-            inverse_diagonal,
-            work,
-            last,
-        } = self;
+        let s = &self.symbolic;
         let block = s.rows(kb as u32);
         let above = &s.row_blocks[s.row_start[kb]..s.row_start[kb + 1]];
         for k in block.clone() {
             for (&i, &v) in h.row_idx_of_col_raw(k).iter().zip(h.val_of_col(k)) {
-                work[i] += v;
+                self.work[i] += v;
             }
-            let mut d = std::mem::take(&mut work[k]);
+            let mut d = std::mem::take(&mut self.work[k]);
             // Row k's columns ascending: the blocks above, then the
             // diagonal block's columns left of k.
             let columns = above.iter().flat_map(|&j| s.rows(j)).chain(block.start..k);
             for j in columns {
-                last[j] += 1;
-                let (done, next) = values.split_at_mut(last[j]);
-                let top = s.col_ptr[j];
-                let lkj = std::mem::take(&mut work[j]) * inverse_diagonal[j];
-                for (&i, &lij) in row_idx[top + 1..last[j]].iter().zip(&done[top + 1..]) {
-                    work[i as usize] -= lij * lkj;
+                self.last[j] += 1;
+                let (done, next) = self.values.split_at_mut(self.last[j]);
+                let rows = s.col_ptr[j] + 1..self.last[j];
+                let lkj = std::mem::take(&mut self.work[j]) * self.inverse_diagonal[j];
+                for (&i, &lij) in self.row_idx[rows.clone()].iter().zip(&done[rows]) {
+                    self.work[i as usize] -= lij * lkj;
                 }
                 d -= lkj * lkj;
                 next[0] = lkj;
@@ -341,8 +334,8 @@ impl SimplicialCholesky {
                 return Err(NotPositiveDefinite { pivot: k + 1 });
             }
             let diagonal = d.sqrt();
-            values[s.col_ptr[k]] = diagonal;
-            inverse_diagonal[k] = diagonal.recip();
+            self.values[s.col_ptr[k]] = diagonal;
+            self.inverse_diagonal[k] = diagonal.recip();
         }
         Ok(())
     }
@@ -447,6 +440,21 @@ mod tests {
         )
     }
 
+    /// H·x for the symmetric H whose upper triangle is `pattern` and `values`.
+    fn upper_times(pattern: &SymbolicSparseColMat<usize>, values: &[f64], x: &[f64]) -> Vec<f64> {
+        let mut out = vec![0.0; x.len()];
+        for j in 0..x.len() {
+            let range = pattern.col_ptr()[j]..pattern.col_ptr()[j + 1];
+            for (&i, &h) in pattern.row_idx()[range.clone()].iter().zip(&values[range]) {
+                out[i] += h * x[j];
+                if i != j {
+                    out[j] += h * x[i];
+                }
+            }
+        }
+        out
+    }
+
     /// The block analysis gives faer's simplicial structure of the scalar
     /// matrix exactly, the factorisation faer's values (to rounding), the
     /// solve H⁻¹b; an indefinite H fails at its pivot and leaves the work
@@ -517,16 +525,7 @@ mod tests {
             }
 
             let x: Vec<f64> = (0..n).map(|_| rng.random_range(-1.0..1.0)).collect();
-            let mut b = vec![0.0; n];
-            for c in 0..n {
-                let range = scalar.col_ptr()[c]..scalar.col_ptr()[c + 1];
-                for (&r, &v) in scalar.row_idx()[range.clone()].iter().zip(&values[range]) {
-                    b[r] += v * x[c];
-                    if r != c {
-                        b[c] += v * x[r];
-                    }
-                }
-            }
+            let mut b = upper_times(&scalar, &values, &x);
             chol.solve_in_place(&mut b);
             for (got, want) in b.iter().zip(&x) {
                 assert!((got - want).abs() < 1e-9, "{got} vs {want}");
@@ -565,18 +564,7 @@ mod tests {
             for (a, b) in x.iter().zip(&y) {
                 assert!((a - b).abs() <= 1e-10 * (1.0 + b.abs()), "{a} vs {b}");
             }
-            // H x (upper triangle stored) against b.
-            let mut hx = vec![0.0; n];
-            for j in 0..n {
-                let range = scalar.col_ptr()[j]..scalar.col_ptr()[j + 1];
-                for (&i, &h) in scalar.row_idx()[range.clone()].iter().zip(&values[range]) {
-                    hx[i] += h * x[j];
-                    if i != j {
-                        hx[j] += h * x[i];
-                    }
-                }
-            }
-            for (a, b) in hx.iter().zip(&b) {
+            for (a, b) in upper_times(&scalar, &values, &x).iter().zip(&b) {
                 assert!((a - b).abs() <= 1e-9, "{a} vs {b}");
             }
             widest = widest.max(dims.iter().sum::<usize>());
