@@ -288,12 +288,13 @@ pub fn run(a: SolveArgs) -> Result<(), String> {
 fn solve(a: SolveArgs) -> Result<(), String> {
     let name = a.file.display().to_string();
     let t = Instant::now();
-    let bytes = super::read_input(&a.file)?;
     let options = ReadOptions {
         repair_information: a.repair_information,
     };
-    let (mut graph, report) =
-        cairn::g2o::read_bytes(&bytes, &options).map_err(|e| format!("{name}: {e}"))?;
+    // The file's bytes are dropped once parsed: on a 10⁶-pose file they are
+    // 250 MB that the solve does not need.
+    let (mut graph, report) = cairn::g2o::read_bytes(&super::read_input(&a.file)?, &options)
+        .map_err(|e| format!("{name}: {e}"))?;
     for &id in &a.fix {
         graph
             .set_fixed(id, true)
