@@ -44,6 +44,17 @@ const AUTO_SUPERNODAL_THRESHOLD_LOW: f64 = 0.4;
 /// faer's flops per factor value above which it goes supernodal.
 const FAER_SUPERNODAL_RATIO: f64 = 40.0;
 
+/// Whether Cairn's simplicial factorisation beats faer's supernodal one on
+/// this factor, by its flops per value and its size (see the thresholds).
+fn simplicial_pays(symbolic: &SimplicialSymbolic) -> bool {
+    let threshold = if symbolic.len_val() < AUTO_LARGE_FACTOR {
+        AUTO_SUPERNODAL_THRESHOLD
+    } else {
+        AUTO_SUPERNODAL_THRESHOLD_LOW
+    };
+    symbolic.flops_per_value() <= threshold * FAER_SUPERNODAL_RATIO
+}
+
 /// Which Cholesky variant factorises H.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize, Deserialize)]
 pub enum Factorization {
@@ -354,11 +365,7 @@ impl SparseCholesky {
                 }
                 Factorization::Auto => {
                     let symbolic = SimplicialSymbolic::analyze(block_pattern, block_dims)?;
-                    let limit = match symbolic.len_val() < AUTO_LARGE_FACTOR {
-                        true => AUTO_SUPERNODAL_THRESHOLD,
-                        false => AUTO_SUPERNODAL_THRESHOLD_LOW,
-                    } * FAER_SUPERNODAL_RATIO;
-                    (symbolic.flops_per_value() <= limit).then_some(symbolic)
+                    simplicial_pays(&symbolic).then_some(symbolic)
                 }
             };
             match simplicial.and_then(SimplicialCholesky::new) {
