@@ -421,33 +421,57 @@ impl Optimizer {
                 self.linearize(graph, &mut phases);
                 return Termination::NonFinite;
             }
-            let decrease = (chi2 - new_chi2) / chi2;
-            chi2 = new_chi2;
-            summary.final_chi2 = chi2;
-            let small_step = self.step_is_small(graph);
-            let converged = (0.0..self.config.relative_decrease).contains(&decrease);
-            let last = small_step || converged || iteration + 1 == self.config.max_iterations;
-            if !last {
-                self.accept(&mut phases);
-            }
             let stats = IterationStats {
                 iteration,
-                chi2,
                 trials: 1,
                 gradient_max,
-                step_max: max_abs(&self.step),
                 phases,
                 ..Default::default()
             };
-            record(stats, began, start, summary, on_iteration);
-            if small_step {
-                return Termination::StepSize;
+            let clock = (began, start);
+            if let Some(end) =
+                self.end_iteration(graph, chi2, new_chi2, stats, clock, summary, on_iteration)
+            {
+                return end;
             }
-            if converged {
-                return Termination::RelativeDecrease;
-            }
+            chi2 = new_chi2;
         }
         Termination::MaxIterations
+    }
+
+    /// Ends an iteration whose step was taken, χ² going from `old_chi2` to
+    /// `new_chi2`: makes the new point's H and gradient current unless this
+    /// was the last iteration, records `stats` (timed from `clock`: the
+    /// iteration's and the optimisation's start), and says whether to stop
+    /// (the step was too small, or χ² fell by less than the tolerance).
+    #[allow(clippy::too_many_arguments)]
+    pub(super) fn end_iteration(
+        &mut self,
+        graph: &Graph,
+        old_chi2: f64,
+        new_chi2: f64,
+        mut stats: IterationStats,
+        (began, start): (Instant, Instant),
+        summary: &mut Summary,
+        on_iteration: &mut dyn FnMut(&IterationStats),
+    ) -> Option<Termination> {
+        let decrease = (old_chi2 - new_chi2) / old_chi2;
+        summary.final_chi2 = new_chi2;
+        let small_step = self.step_is_small(graph);
+        let converged = (0.0..self.config.relative_decrease).contains(&decrease);
+        if !(small_step || converged || stats.iteration + 1 == self.config.max_iterations) {
+            self.accept(&mut stats.phases);
+        }
+        stats.chi2 = new_chi2;
+        stats.step_max = max_abs(&self.step);
+        record(stats, began, start, summary, on_iteration);
+        if small_step {
+            Some(Termination::StepSize)
+        } else if converged {
+            Some(Termination::RelativeDecrease)
+        } else {
+            None
+        }
     }
 }
 

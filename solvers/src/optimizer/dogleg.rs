@@ -106,7 +106,7 @@ impl Optimizer {
                     break None;
                 }
             };
-            let mut stats = IterationStats {
+            let stats = IterationStats {
                 iteration,
                 chi2,
                 radius: Some(radius),
@@ -119,23 +119,13 @@ impl Optimizer {
                 record(stats, began, start, summary, on_iteration);
                 return Termination::NoImprovement;
             };
-            let decrease = (chi2 - new_chi2) / chi2;
+            let clock = (began, start);
+            if let Some(end) =
+                self.end_iteration(graph, chi2, new_chi2, stats, clock, summary, on_iteration)
+            {
+                return end;
+            }
             chi2 = new_chi2;
-            summary.final_chi2 = chi2;
-            let small_step = self.step_is_small(graph);
-            let converged = (0.0..self.config.relative_decrease).contains(&decrease);
-            if !(small_step || converged || iteration + 1 == self.config.max_iterations) {
-                self.accept(&mut stats.phases);
-            }
-            stats.chi2 = chi2;
-            stats.step_max = max_abs(&self.step);
-            record(stats, began, start, summary, on_iteration);
-            if small_step {
-                return Termination::StepSize;
-            }
-            if converged {
-                return Termination::RelativeDecrease;
-            }
         }
         Termination::MaxIterations
     }

@@ -94,16 +94,16 @@ impl Optimizer {
                     break None;
                 }
             };
+            let stats = IterationStats {
+                iteration,
+                chi2,
+                lambda: Some(lambda),
+                trials,
+                gradient_max,
+                phases,
+                ..Default::default()
+            };
             let Some(new_chi2) = new_chi2 else {
-                let stats = IterationStats {
-                    iteration,
-                    chi2,
-                    lambda: Some(lambda),
-                    trials,
-                    gradient_max,
-                    phases,
-                    ..Default::default()
-                };
                 record(stats, began, start, summary, on_iteration);
                 return if rejected_small_step {
                     Termination::StepSize
@@ -111,32 +111,13 @@ impl Optimizer {
                     Termination::NoImprovement
                 };
             };
-            let decrease = (chi2 - new_chi2) / chi2;
+            let clock = (began, start);
+            if let Some(end) =
+                self.end_iteration(graph, chi2, new_chi2, stats, clock, summary, on_iteration)
+            {
+                return end;
+            }
             chi2 = new_chi2;
-            summary.final_chi2 = chi2;
-            let small_step = self.step_is_small(graph);
-            let converged = (0.0..self.config.relative_decrease).contains(&decrease);
-            let last = small_step || converged || iteration + 1 == self.config.max_iterations;
-            if !last {
-                self.accept(&mut phases);
-            }
-            let stats = IterationStats {
-                iteration,
-                chi2,
-                lambda: Some(lambda),
-                trials,
-                gradient_max,
-                step_max: max_abs(&self.step),
-                phases,
-                ..Default::default()
-            };
-            record(stats, began, start, summary, on_iteration);
-            if small_step {
-                return Termination::StepSize;
-            }
-            if converged {
-                return Termination::RelativeDecrease;
-            }
         }
         Termination::MaxIterations
     }
