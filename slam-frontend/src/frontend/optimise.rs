@@ -137,10 +137,14 @@ impl GraphSlam {
         if close.is_empty() {
             return;
         }
-        let seen_together = self.seen_together(&close);
-        for (&(a, b), together) in close.iter().zip(seen_together) {
+        let mut scans = self.scans_seeing(&close);
+        for &(a, b) in &close {
+            // A merge earlier in this loop may have made either the other's
+            // twin; its scans go with it (a landmark a later lap started
+            // beside a big orange pair was merged into one cone, then the
+            // pair's other cone, never seen together with it, into the same).
             let (a, b) = (self.resolve(a), self.resolve(b));
-            if a == b || together {
+            if a == b || shares_a_scan(&scans[&a], &scans[&b]) {
                 continue;
             }
             let (keep, drop) = if self.landmarks[a].sighting.seen >= self.landmarks[b].sighting.seen
@@ -156,34 +160,40 @@ impl GraphSlam {
             }
             kept.seen += dropped.seen;
             self.alias[drop] = keep;
+            let mut merged = scans.remove(&drop).unwrap_or_default();
+            merged.extend_from_slice(&scans[&keep]);
+            merged.sort_unstable();
+            scans.insert(keep, merged);
         }
     }
 
-    /// For each pair, whether some scan has two different detections of
-    /// them. (Place recognition may re-tie a detection to an old landmark,
-    /// so one detection can stand for both.)
-    fn seen_together(&self, pairs: &[(usize, usize)]) -> Vec<bool> {
-        let mut sightings: HashMap<usize, Vec<(usize, Vector2<f64>)>> = HashMap::new();
-        for &(a, b) in pairs {
-            sightings.entry(a).or_default();
-            sightings.entry(b).or_default();
-        }
-        for o in &self.observations {
-            if let Some(list) = sightings.get_mut(&self.resolve(o.landmark)) {
-                list.push((o.pose, o.z));
+    /// The scans that matched a detection to each landmark of `pairs`, in
+    /// ascending order (from the association record, which is in scan order).
+    fn scans_seeing(&self, pairs: &[(usize, usize)]) -> HashMap<usize, Vec<usize>> {
+        let mut scans: HashMap<usize, Vec<usize>> = pairs
+            .iter()
+            .flat_map(|&(a, b)| [(a, Vec::new()), (b, Vec::new())])
+            .collect();
+        for &(scan, _, landmark) in &self.detections {
+            if let Some(list) = landmark.and_then(|l| scans.get_mut(&self.resolve(l))) {
+                list.push(scan);
             }
         }
-        pairs
-            .iter()
-            .map(|(a, b)| {
-                let (sa, sb) = (&sightings[a], &sightings[b]);
-                sa.iter().any(|(pa, za)| {
-                    sb.iter()
-                        .any(|(pb, zb)| pa == pb && (za - zb).norm() > 1e-9)
-                })
-            })
-            .collect()
+        scans
     }
+}
+
+/// Whether two ascending lists share an element.
+fn shares_a_scan(a: &[usize], b: &[usize]) -> bool {
+    let (mut i, mut j) = (0, 0);
+    while i < a.len() && j < b.len() {
+        match a[i].cmp(&b[j]) {
+            std::cmp::Ordering::Less => i += 1,
+            std::cmp::Ordering::Greater => j += 1,
+            std::cmp::Ordering::Equal => return true,
+        }
+    }
+    false
 }
 
 /// The pairs `(a, b)`, a < b, of the labelled points closer than `radius`,
