@@ -91,6 +91,11 @@ pub struct SlamArgs {
     /// Keep mapping after the loop closes instead of localising on the map.
     #[arg(long)]
     keep_mapping: bool,
+    /// With tracking association, do not match every detection again along
+    /// its tracker id's chain at the end of the run (about half of the
+    /// end-of-run time).
+    #[arg(long)]
+    no_hindsight: bool,
     /// Skip and count malformed log lines instead of stopping at the first.
     #[arg(long)]
     skip_bad: bool,
@@ -233,6 +238,7 @@ pub fn run_slam(a: SlamArgs) -> Result<(), String> {
         }
     };
     config.localise_after_loop = !a.keep_mapping;
+    config.hindsight = !a.no_hindsight;
     config.rot_trans_rot = match (a.odometry_noise.as_str(), &a.alpha) {
         ("velocity", None) => None,
         ("rot-trans-rot", None) => Some(DEFAULT_ALPHA),

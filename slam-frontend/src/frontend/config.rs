@@ -52,6 +52,13 @@ pub struct FrontEndConfig {
     /// How often the detector sees a cone that is well inside its view:
     /// objects seen far less often are clutter.
     pub detection_probability: f64,
+    /// False positives the detector makes per scan, spread over its view:
+    /// how likely a detection is clutter rather than a cone.
+    pub false_positives: f64,
+    /// With tracking association, match every detection again at the end
+    /// of the run along its tracker id's chain of sightings
+    /// ([`GraphSlam::finish`](super::GraphSlam::finish)).
+    pub hindsight: bool,
     /// Sightings before a tentative landmark joins the map.
     pub confirm_after: u32,
     /// Landmarks that return after leaving the view, needed in one scan to
@@ -82,6 +89,8 @@ impl Default for FrontEndConfig {
             color_wrong: 0.02,
             color_unknown: 0.05,
             detection_probability: 0.9,
+            false_positives: 0.3,
+            hindsight: true,
             confirm_after: 3,
             loop_min_returned: 4,
             localise_after_loop: true,
@@ -122,6 +131,7 @@ impl FrontEndConfig {
             },
             color_unknown: s.unknown_color,
             detection_probability: s.detection_probability,
+            false_positives: s.false_positives,
             ..FrontEndConfig::default()
         }
     }
