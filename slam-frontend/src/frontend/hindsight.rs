@@ -216,35 +216,78 @@ fn argmin(values: &[f64]) -> (usize, f64) {
     )
 }
 
-/// Where two detections of one scan claim one landmark, the likelier keeps
-/// it and the others lose it as a candidate. `by_scan` lists each scan's
-/// links as (chain, position). Returns the chains to redo.
+/// Where two detections of one scan claim one landmark, the chain that
+/// holds it longer (then the likelier detection) keeps it, and the others
+/// lose it as a candidate while the keeper holds it: two objects tracked
+/// at once are not one cone (a clutter object beside a cone, seen a third
+/// as often, took the cone's landmark whenever the cone went undetected).
+/// `by_scan` lists each scan's links as (chain, position). Returns the
+/// chains to redo.
 fn settle_claims(
     chains: &mut [Vec<Link>],
     paths: &[Vec<Option<usize>>],
     by_scan: &[Vec<(usize, usize)>],
 ) -> Vec<usize> {
     let mut redo = Vec::new();
-    let mut claims: Vec<(usize, f64, usize, usize)> = Vec::new();
+    let mut claims: Vec<(usize, Holding, f64, usize, usize)> = Vec::new();
     for links in by_scan {
         claims.clear();
         for &(c, t) in links {
             if let Some(l) = paths[c][t] {
-                claims.push((l, chains[c][t].cost(Some(l)), c, t));
+                let holding = Holding::of(&chains[c], &paths[c], l);
+                claims.push((l, holding, chains[c][t].cost(Some(l)), c, t));
             }
         }
-        claims.sort_unstable_by(|a, b| a.0.cmp(&b.0).then(a.1.total_cmp(&b.1)).then(a.2.cmp(&b.2)));
+        claims.sort_unstable_by(|a, b| {
+            (a.0.cmp(&b.0))
+                .then(b.1.links.cmp(&a.1.links))
+                .then(a.2.total_cmp(&b.2))
+                .then(a.3.cmp(&b.3))
+        });
         for pair in claims.windows(2) {
-            let (l, _, c, t) = pair[1];
-            if pair[0].0 == l {
-                chains[c][t].landmarks.retain(|p| p.0 != l);
-                redo.push(c);
+            let (l, _, _, c, _) = pair[1];
+            if pair[0].0 != l {
+                continue;
             }
+            let keeper = pair[0].1;
+            for link in &mut chains[c] {
+                if (keeper.first..=keeper.last).contains(&link.scan) {
+                    link.landmarks.retain(|p| p.0 != l);
+                }
+            }
+            redo.push(c);
         }
     }
     redo.sort_unstable();
     redo.dedup();
     redo
+}
+
+/// How a chain holds a landmark: its links on it, and the first and last
+/// of their scans.
+#[derive(Clone, Copy)]
+struct Holding {
+    links: usize,
+    first: usize,
+    last: usize,
+}
+
+impl Holding {
+    fn of(chain: &[Link], path: &[Option<usize>], l: usize) -> Holding {
+        let mut h = Holding {
+            links: 0,
+            first: usize::MAX,
+            last: 0,
+        };
+        for (link, &state) in chain.iter().zip(path) {
+            if state == Some(l) {
+                h.links += 1;
+                h.first = h.first.min(link.scan);
+                h.last = h.last.max(link.scan);
+            }
+        }
+        h
+    }
 }
 
 #[cfg(test)]
@@ -309,5 +352,26 @@ mod tests {
         assert_eq!(chains[0][0].landmarks, vec![(8, 0.0)]);
         assert_eq!(best_path(&chains[0], SWITCH), vec![Some(8)]);
         assert_eq!(chains[1][0].landmarks, vec![(7, -3.0)]);
+    }
+
+    #[test]
+    fn an_object_tracked_beside_a_cone_loses_its_landmark_while_the_cone_holds_it() {
+        // Chain 0, a cone seen in scans 0–5, holds landmark 3; chain 1, a
+        // clutter object beside it, fits 3 in scans 2–5 and once even
+        // better than the cone's own detection (scan 2).
+        let mut chains = vec![
+            (0..6).map(|s| link(s, &[(3, -4.0)])).collect::<Vec<_>>(),
+            (2..6)
+                .map(|s| link(s, &[(3, if s == 2 { -5.0 } else { -1.0 })]))
+                .collect(),
+        ];
+        let paths: Vec<Vec<Option<usize>>> = chains.iter().map(|c| best_path(c, SWITCH)).collect();
+        assert_eq!(paths[1], vec![Some(3); 4]);
+        let mut by_scan = vec![vec![(0, 0)], vec![(0, 1)]];
+        by_scan.extend((2..6).map(|s| vec![(0, s), (1, s - 2)]));
+        assert_eq!(settle_claims(&mut chains, &paths, &by_scan), vec![1]);
+        assert!(chains[1].iter().all(|link| link.landmarks.is_empty()));
+        assert_eq!(best_path(&chains[1], SWITCH), vec![None; 4]);
+        assert!(chains[0].iter().all(|link| link.landmarks == [(3, -4.0)]));
     }
 }

@@ -212,8 +212,8 @@ impl GraphSlam {
     /// [`FrontEndConfig::hindsight`] is off), every detection is then
     /// matched again along its tracker id's chain of sightings and the map
     /// optimised once more (15 tracks × 5 seeds: association `standard`
-    /// 99.86 → 99.95%, `hard` 98.31 → 99.21%; the EUFS tracks' `hard` runs
-    /// from 95.3–96.7% to 97.7–99.4%). Not real-time: 40 ms–1.3 s for two
+    /// 99.86 → 99.96%, `hard` 98.31 → 99.46%; the EUFS tracks' `hard` runs
+    /// from 95.3–96.7% to 98.5–99.6%). Not real-time: 40 ms–1.3 s for two
     /// laps, reported apart from the loop closures
     /// ([`Timing::final_optimisation`]). A failed solve keeps the estimate
     /// as it was.
