@@ -133,20 +133,27 @@ impl GraphSlam {
         chains
     }
 
-    /// The sightings again, one per matched detection of `scans`. Landmarks
-    /// matched fewer times than a tentative one needs to be confirmed leave
-    /// the map: typically a cone's second landmark, whose detections the
-    /// chains gave to the first, left with a false positive or two that
-    /// would pull it off the cone.
+    /// The sightings and each landmark's colour votes again, from the
+    /// detections of `scans` as now matched. Landmarks matched fewer times
+    /// than a tentative one needs to be confirmed leave the map: typically
+    /// a cone's second landmark, whose detections the chains gave to the
+    /// first, left with a false positive or two that would pull it off the
+    /// cone.
     fn rebuild_sightings(&mut self, scans: &[PendingScan]) {
-        let mut sightings = vec![0u32; self.landmarks.len()];
-        for d in &self.detections {
-            if let Some(l) = d.2 {
-                sightings[l] += 1;
+        let mut votes = vec![[0u32; 5]; self.landmarks.len()];
+        for s in scans {
+            for (i, d) in s.cones.iter().enumerate() {
+                if let Some(l) = self.detections[s.first + i].2 {
+                    votes[l][d.color.index()] += 1;
+                }
             }
         }
         for l in self.map_rows() {
-            if sightings[l] < self.config.confirm_after {
+            let seen: u32 = votes[l].iter().sum();
+            let sighting = &mut self.landmarks[l].sighting;
+            sighting.votes = votes[l];
+            sighting.seen = seen;
+            if seen < self.config.confirm_after {
                 self.landmarks[l].removed = true;
             }
         }

@@ -234,6 +234,8 @@ impl GraphSlam {
         {
             self.associate_in_hindsight(&scans, gate);
             result = self.optimise(optimise::Batch::last());
+            // Judged again on the colours of the detections as now matched.
+            self.drop_clutter();
         }
         self.timing.final_optimisation = Some(start.elapsed().as_secs_f64());
         result
