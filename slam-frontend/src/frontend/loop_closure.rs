@@ -198,15 +198,8 @@ impl GraphSlam {
     pub(super) fn match_again(&mut self, scans: &[PendingScan], gate: f64) {
         let pose_cov = self.pose_cov;
         for scan in scans {
-            let pose = self.poses[scan.keyframe].pose;
-            let covs: Vec<Matrix2<f64>> = scan
-                .cones
-                .iter()
-                .map(|d| self.config.detection_cov(d))
-                .collect();
-            let (mut candidates, _) = self.candidates(&pose, &pose_cov, &scan.cones, &covs, gate);
             let slots = scan.first..scan.first + scan.cones.len();
-            let matched: Vec<Option<usize>> = self.detections[slots.clone()]
+            let matched: Vec<Option<usize>> = self.detections[slots]
                 .iter()
                 .map(|d| {
                     d.2.map(|l| self.resolve(l)).filter(|&l| {
@@ -214,6 +207,16 @@ impl GraphSlam {
                     })
                 })
                 .collect();
+            if matched.iter().all(Option::is_some) {
+                continue;
+            }
+            let pose = self.poses[scan.keyframe].pose;
+            let covs: Vec<Matrix2<f64>> = scan
+                .cones
+                .iter()
+                .map(|d| self.config.detection_cov(d))
+                .collect();
+            let (mut candidates, _) = self.candidates(&pose, &pose_cov, &scan.cones, &covs, gate);
             for (i, pairs) in candidates.iter_mut().enumerate() {
                 if matched[i].is_some() {
                     pairs.clear();

@@ -222,7 +222,7 @@ impl GraphSlam {
             return Ok(());
         }
         let start = Instant::now();
-        // Matching again passes over the detections already matched.
+        // Matching again skips the scans whose detections are all matched.
         let scans = std::mem::take(&mut self.scan_log);
         let gate = self.config.gate.max(FINAL_GATE);
         self.match_again(&scans, gate);
