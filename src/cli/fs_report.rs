@@ -142,13 +142,18 @@ pub fn run(a: ReportArgs) -> Result<(), String> {
          Gauss–Newton step over every 4th pose (with its bias) and the landmarks (the poses \
          between follow; the final optimisation refines them all). Every pose and two steps took \
          160 ms on the 828 m hairpins, whose tight turns let each cone be seen from far more \
-         poses. Run alone now (3,600 unknowns, 8,200 edges): building the graph ~1.5 ms, \
+         poses. Run alone at every 4th pose (3,600 unknowns, 8,200 edges): building the graph ~1.5 ms, \
          structure and symbolic analysis ~5.5 ms, the step ~7 ms, of which ~4.4 ms is the \
          numeric factorisation: cones seen across the hairpin legs couple most of the kept \
          poses, so the factor has ~510,000 non-zeros under every ordering tried (AMD, block AMD, \
          landmarks first), and faer's two-thread factorisation was slower. Fewer poses thin it \
          but cost association: every 6th pose 99.52 → 99.48% (15 tracks × 10 seeds), every 8th \
-         99.22% (measured before the exchange step). This report runs two runs at once, and \
+         99.22% (measured before the exchange step). Tracking association, whose detections \
+         are all matched again in hindsight at the end of the run, keeps every 8th pose: the \
+         same final association (15 tracks × 5 seeds: 99.97% / 99.48%, against 99.97% / 99.49% \
+         at every 4th) and the hairpins' loop closure 20–33 → 12–16 ms run alone (maximum \
+         likelihood, without that pass, lost 99.83 → 99.71% `standard` at every 8th and keeps \
+         every 4th). This report runs two runs at once, and \
          latencies on this shared 2-core machine vary up to 3× between identical runs and \
          between days.\n\
          - **Association** (in real time 99.7–99.9% on most tracks): the `standard` preset gates at χ² \

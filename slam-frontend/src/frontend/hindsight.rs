@@ -13,6 +13,7 @@
 
 use super::GraphSlam;
 use super::Observation;
+use super::association::AssociationMethod;
 use super::edges::nearest_information;
 use super::loop_closure::PendingScan;
 use nalgebra::Matrix2;
@@ -52,6 +53,12 @@ impl Link {
 }
 
 impl GraphSlam {
+    /// Whether [`GraphSlam::finish`] matches every detection again along
+    /// its tracker id's chain.
+    pub(super) fn matches_in_hindsight(&self) -> bool {
+        self.config.hindsight && self.config.association == AssociationMethod::Tracking
+    }
+
     /// Matches every detection of `scans` again from the poses and map as
     /// they stand, chain by chain, one landmark per detection per scan, and
     /// rebuilds the sightings from the result. Landmarks left without a

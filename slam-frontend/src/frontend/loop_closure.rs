@@ -253,7 +253,9 @@ impl GraphSlam {
         let start = Instant::now();
         self.loop_closures += 1;
         self.closed_at = Some(self.motion.distance());
-        if let Err(e) = self.optimise(super::optimise::Batch::loop_closure()) {
+        if let Err(e) = self.optimise(super::optimise::Batch::loop_closure(
+            self.matches_in_hindsight(),
+        )) {
             self.warnings.push(format!(
                 "loop closure {}: the optimisation failed ({e}); kept the estimate",
                 self.loop_closures

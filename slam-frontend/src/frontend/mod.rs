@@ -24,7 +24,7 @@ use crate::log::{Detection, Record};
 use crate::motion::{Odometry, compose_with_cov};
 use crate::sighting::{MIN_LOOP, Sighting};
 use crate::track::Cone;
-use association::{AssociationMethod, Candidates, Pair, associate, through_pose};
+use association::{Candidates, Pair, associate, through_pose};
 use cairn_core::SE2;
 use nalgebra::{Matrix2, Matrix3, SMatrix, Vector2};
 use std::collections::HashMap;
@@ -228,10 +228,7 @@ impl GraphSlam {
         self.match_again(&scans, gate);
         let mut result = self.optimise(optimise::Batch::last());
         self.drop_clutter();
-        if self.config.hindsight
-            && self.config.association == AssociationMethod::Tracking
-            && result.is_ok()
-        {
+        if self.matches_in_hindsight() && result.is_ok() {
             self.associate_in_hindsight(&scans, gate);
             result = self.optimise(optimise::Batch::last());
             // Judged again on the colours of the detections as now matched.
