@@ -185,9 +185,10 @@ pub fn run(a: ReportArgs) -> Result<(), String> {
          right, along the chains 99.2%. The tracker follows a cone from far to near, so the \
          near sightings settle the far ones. Landmarks left with fewer than 3 sightings leave \
          the map, and the colours as now matched judge clutter again. 15 tracks × 5 seeds: \
-         `standard` 99.86 → 99.97% (eufs_rand 99.01 → 99.73%, phantoms 1.4 → 0.4), `hard` 98.31 \
-         → 99.49% (the EUFS tracks from 95.3–96.7% to 98.5–99.6%, eufs_rand's phantoms 15.4 → \
-         3.4), `hard` map RMSE 0.167 → 0.148 m (hairpins 0.291 → 0.117 m). It costs a second \
+         `standard` 99.86 → 99.97% (eufs_rand 99.01 → 99.82%, phantoms 1.4 → 0.2), `hard` 98.31 \
+         → 99.48% (the EUFS tracks from 95.3–96.7% to 98.4–99.8%, eufs_rand's phantoms 15.4 → \
+         3.4), `hard` map RMSE 0.167 → 0.143 m (hairpins 0.291 → 0.118 m), with the loop \
+         closure at every 8th pose (above). It costs a second \
          final optimisation: the end of the run takes 2–3 times as long (hairpins, run alone, \
          0.5 → 1.3 s). Before it, a merge of duplicate landmarks now carries its scans to the \
          landmark it keeps, so a chain of merges cannot join two cones one scan saw (a landmark \
@@ -221,8 +222,8 @@ pub fn run(a: ReportArgs) -> Result<(), String> {
          weighs the sightings under a Cauchy kernel (0.163 m). The EUFS tracks then ended at \
          95.5–97% because their cones stand closer together than the far detections' noise, \
          until the association in hindsight (above). What is left: eufs_comp_2021's clusters \
-         0.28–0.8 m apart (98.5%); unaligned map RMSE on the large tracks (eufs_rand 0.25, \
-         random-0 0.41 m; aligned 0.13 and 0.21 m), the `standard` preset's turn of the whole \
+         0.28–0.8 m apart (98.4%); unaligned map RMSE on the large tracks (eufs_rand 0.22, \
+         random-0 0.38 m; aligned 0.11 and 0.20 m), the `standard` preset's turn of the whole \
          map about the start under 2° bearings and a 0.01 rad/s gyro bias (eufs_rand seed 0: \
          0.50 m, 0.23 m aligned); and random-0 seed 4, which loses its heading at 0.3°/s on a \
          sparse stretch between 24 and 31 s (3–9 cones per scan, matched right) and never closes \
