@@ -16,7 +16,6 @@ use super::Observation;
 use super::association::AssociationMethod;
 use super::edges::nearest_information;
 use super::loop_closure::PendingScan;
-use nalgebra::Matrix2;
 use std::collections::HashMap;
 
 /// How likely a tracker id moves to another object between two sightings:
@@ -105,13 +104,7 @@ impl GraphSlam {
         let mut chains: Vec<Vec<Link>> = Vec::new();
         let mut open: HashMap<u64, (usize, usize)> = HashMap::new();
         for s in scans {
-            let pose = self.poses[s.keyframe].pose;
-            let covs: Vec<Matrix2<f64>> = s
-                .cones
-                .iter()
-                .map(|d| self.config.detection_cov(d))
-                .collect();
-            let (candidates, _) = self.candidates(&pose, &self.pose_cov, &s.cones, &covs, gate);
+            let (candidates, _) = self.candidates_again(s, gate);
             for (i, (d, pairs)) in s.cones.iter().zip(candidates).enumerate() {
                 let slot = s.first + i;
                 let scan = self.detections[slot].0;

@@ -2,7 +2,7 @@
 //! recognition when drift hides them from the gates, the full optimisation
 //! that follows, and placing the car on a given map.
 
-use super::association::{AssociationMethod, associate, through_pose};
+use super::association::{AssociationMethod, Candidates, associate, through_pose};
 use super::{GraphSlam, Mode, Observation, align, chi2_99, nearest_information};
 use crate::color::Color;
 use crate::log::Detection;
@@ -192,6 +192,23 @@ impl GraphSlam {
         self.match_again(&scans, self.config.gate);
     }
 
+    /// The candidates of a logged scan's detections within the χ² `gate`
+    /// from its pose as it now stands, and the detections' covariances.
+    pub(super) fn candidates_again(
+        &self,
+        scan: &PendingScan,
+        gate: f64,
+    ) -> (Candidates, Vec<Matrix2<f64>>) {
+        let pose = self.poses[scan.keyframe].pose;
+        let covs: Vec<Matrix2<f64>> = scan
+            .cones
+            .iter()
+            .map(|d| self.config.detection_cov(d))
+            .collect();
+        let (candidates, _) = self.candidates(&pose, &self.pose_cov, &scan.cones, &covs, gate);
+        (candidates, covs)
+    }
+
     /// Matches the unmatched detections of `scans` from their poses as
     /// they now stand, by maximum likelihood within the χ² `gate` among the
     /// landmarks each scan left free.
@@ -210,13 +227,7 @@ impl GraphSlam {
             if matched.iter().all(Option::is_some) {
                 continue;
             }
-            let pose = self.poses[scan.keyframe].pose;
-            let covs: Vec<Matrix2<f64>> = scan
-                .cones
-                .iter()
-                .map(|d| self.config.detection_cov(d))
-                .collect();
-            let (mut candidates, _) = self.candidates(&pose, &pose_cov, &scan.cones, &covs, gate);
+            let (mut candidates, covs) = self.candidates_again(scan, gate);
             for (i, pairs) in candidates.iter_mut().enumerate() {
                 if matched[i].is_some() {
                     pairs.clear();
