@@ -160,17 +160,39 @@ fn wrong_sightings_do_not_bend_the_final_map() {
     }
 }
 
+/// Random tracks with cones 1.5–2 m apart, as on the EUFS tracks.
+fn tight_rules() -> TrackRules {
+    TrackRules {
+        length: (150.0, 200.0),
+        spacing: (1.5, 2.0),
+        ..TrackRules::default()
+    }
+}
+
+#[test]
+fn far_detections_of_the_start_area_do_not_close_the_loop_one_cone_off() {
+    // On these tracks a `hard` lap drifts about a cone spacing. The gates
+    // used to leave the start area to place recognition only within 12 m
+    // of the start; from 12–15 m they matched far detections one cone off
+    // and closed the loop there (association 54%, ATE 1.9–2.5 m). Runs of
+    // 20 that did: track 0 seed 2, track 1 seed 1, track 3 seed 0.
+    for (track, seed) in [(0, 2), (1, 1), (3, 0)] {
+        let (sim, config) = hard_sim_on(track, seed, &tight_rules());
+        let (slam, report) = run_and_score(&sim, config);
+        println!("track {track} seed {seed}: {report:?}");
+        assert_eq!(slam.loop_closures(), 1, "track {track} seed {seed}");
+        assert!(report.association_accuracy > 0.97, "{report:?}");
+        assert!(report.ate < 0.3, "{report:?}");
+    }
+}
+
 #[test]
 fn tracker_chains_put_the_far_detections_right_in_hindsight() {
     // Cones 1.5–2 m apart along each side, as on the EUFS tracks, are closer
     // than far detections' noise (0.3–0.4 m at 10–15 m): matched alone in
     // real time, about 4% go to a neighbour. At the end of the run the
     // tracker id ties each to the near sightings of the same cone.
-    let tight = TrackRules {
-        length: (150.0, 200.0),
-        spacing: (1.5, 2.0),
-        ..TrackRules::default()
-    };
+    let tight = tight_rules();
     // Measured 97.6 → 98.7%, 98.3 → 99.6%, 97.9 → 99.3%.
     for (track, seed) in [(1, 0), (1, 2), (2, 2)] {
         let (sim, config) = hard_sim_on(track, seed, &tight);

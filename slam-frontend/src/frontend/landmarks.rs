@@ -138,7 +138,6 @@ impl GraphSlam {
         let inverse = pose.inverse();
         let mapping = self.mode == Mode::Mapping;
         let distance = self.motion.distance();
-        let closing = self.back_at_start(pose);
         for l in 0..self.landmarks.len() {
             if self.landmarks[l].removed || self.alias[l] != l {
                 continue;
@@ -146,7 +145,7 @@ impl GraphSlam {
             // The gates leave the start area out until the loop closes, so
             // it cannot be missed meanwhile: counted, the misses removed
             // a big orange cone seen only six times on the way out.
-            let gated = !(closing && self.awaits_loop_closure(l));
+            let gated = !self.awaits_loop_closure(l);
             let lm = &mut self.landmarks[l];
             let visible = gated && in_view(&self.config, &inverse, &lm.mean);
             let seen = associated.get(l).copied().unwrap_or(false);

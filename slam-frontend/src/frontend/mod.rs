@@ -405,7 +405,6 @@ impl GraphSlam {
                 || self.recognise_place(cones, &covs, keyframe))
         {
             self.close_loop();
-            self.match_near_start_scans();
         }
     }
 
@@ -422,16 +421,15 @@ impl GraphSlam {
         let rt = pose.rotation().transpose();
         let drt = Matrix2::new(0.0, 1.0, -1.0, 0.0) * rt;
         let reach = self.config.max_range + 5.0;
-        // Back at the start, the start area's landmarks are matched only
+        // Until the loop closes, the start area's landmarks are matched only
         // through place recognition ([`Self::awaits_loop_closure`]).
-        let closing = self.back_at_start(pose);
         let nearby: Vec<usize> = (0..self.landmarks.len())
             .filter(|&l| {
                 let lm = &self.landmarks[l];
                 !lm.removed
                     && self.alias[l] == l
                     && (self.mode == Mode::Mapping || lm.sighting.confirmed)
-                    && !(closing && self.awaits_loop_closure(l))
+                    && !self.awaits_loop_closure(l)
                     && (lm.mean - pose.t).norm() < reach
             })
             .collect();
