@@ -142,6 +142,16 @@ fn fits(
         }
         counts
     };
+    // Whether map cone `m` is within the prior's reach of detection `d`:
+    // any pose the prior admits moves d at most the largest shift plus
+    // the 0.4 rad turn at its range (and a two-point fit misses by less
+    // than 0.3 m). Skipping the rest saves most of the pairs on a dense map.
+    let reachable = |d: &Detection, m: &Vector2<f64>| match prior {
+        None => true,
+        Some((p, max_shift)) => {
+            (p.transform_point(&d.position) - m).norm() <= max_shift + 0.4 * d.position.norm() + 0.3
+        }
+    };
     // The nearest detections are the most precise.
     let mut near: Vec<&Detection> = proposers.iter().collect();
     near.sort_by(|a, b| a.position.norm().total_cmp(&b.position.norm()));
@@ -155,11 +165,14 @@ fn fits(
                 continue;
             }
             for (p, cp) in map {
-                if !cp.compatible(a.color) {
+                if !cp.compatible(a.color) || !reachable(a, p) {
                     continue;
                 }
                 for (q, cq) in map {
                     if !cq.compatible(b.color) || ((q - p).norm() - dab).abs() > 0.3 {
+                        continue;
+                    }
+                    if !reachable(b, q) {
                         continue;
                     }
                     let pose = from_two(a.position, b.position, *p, *q);
