@@ -169,10 +169,10 @@ fn fits(
                     continue;
                 }
                 for (q, cq) in map {
-                    if !cq.compatible(b.color) || ((q - p).norm() - dab).abs() > 0.3 {
-                        continue;
-                    }
-                    if !reachable(b, q) {
+                    if !cq.compatible(b.color)
+                        || ((q - p).norm() - dab).abs() > 0.3
+                        || !reachable(b, q)
+                    {
                         continue;
                     }
                     let pose = from_two(a.position, b.position, *p, *q);

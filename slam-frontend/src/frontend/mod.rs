@@ -429,8 +429,8 @@ impl GraphSlam {
                 !lm.removed
                     && self.alias[l] == l
                     && (self.mode == Mode::Mapping || lm.sighting.confirmed)
-                    && !self.awaits_loop_closure(l)
                     && (lm.mean - pose.t).norm() < reach
+                    && !self.awaits_loop_closure(l)
             })
             .collect();
         cones
