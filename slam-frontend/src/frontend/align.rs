@@ -2,6 +2,7 @@
 //! and two map cones of the same colours and spacing fix a rigid transform;
 //! the one most detections agree with wins.
 
+use super::grid::Grid;
 use crate::color::Color;
 use crate::log::Detection;
 use cairn_core::SE2;
@@ -125,17 +126,19 @@ fn fits(
             })
         }
     };
-    // (inliers, of which big orange on big orange)
+    // (inliers, of which big orange on big orange). A detection agrees
+    // with the first map cone (in map order) of a compatible colour near
+    // it.
+    let grid = Grid::new(map.iter().map(|(m, _)| *m).collect(), INLIER);
     let count = |pose: &SE2| {
         let mut counts = (0, 0);
+        let rotation = pose.rotation();
         for d in detections {
-            let w = pose.transform_point(&d.position);
-            if let Some((_, c)) = map
-                .iter()
-                .find(|(m, c)| c.compatible(d.color) && (m - w).norm() < INLIER)
-            {
+            let w = pose.t + rotation * d.position;
+            let first = grid.first_near(&w, INLIER, |i| map[i].1.compatible(d.color));
+            if let Some(i) = first {
                 counts.0 += 1;
-                if d.color == Color::BigOrange && *c == Color::BigOrange {
+                if d.color == Color::BigOrange && map[i].1 == Color::BigOrange {
                     counts.1 += 1;
                 }
             }
@@ -156,6 +159,15 @@ fn fits(
     let mut near: Vec<&Detection> = proposers.iter().collect();
     near.sort_by(|a, b| a.position.norm().total_cmp(&b.position.norm()));
     near.truncate(8);
+    // The map cones each proposer may stand for, in map order.
+    let within: Vec<Vec<usize>> = near
+        .iter()
+        .map(|d| {
+            (0..map.len())
+                .filter(|&i| map[i].1.compatible(d.color) && reachable(d, &map[i].0))
+                .collect()
+        })
+        .collect();
     let mut fits = Vec::new();
     for i in 0..near.len() {
         for j in i + 1..near.len() {
@@ -164,18 +176,12 @@ fn fits(
             if dab < 1.0 {
                 continue;
             }
-            for (p, cp) in map {
-                if !cp.compatible(a.color) || !reachable(a, p) {
-                    continue;
-                }
-                for (q, cq) in map {
-                    if !cq.compatible(b.color)
-                        || ((q - p).norm() - dab).abs() > 0.3
-                        || !reachable(b, q)
-                    {
+            for &(p, _) in within[i].iter().map(|&k| &map[k]) {
+                for &(q, _) in within[j].iter().map(|&k| &map[k]) {
+                    if ((q - p).norm() - dab).abs() > 0.3 {
                         continue;
                     }
-                    let pose = from_two(a.position, b.position, *p, *q);
+                    let pose = from_two(a.position, b.position, p, q);
                     let Some(log_prior) = prior_score(&pose) else {
                         continue;
                     };

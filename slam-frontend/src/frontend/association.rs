@@ -86,6 +86,14 @@ impl Pair {
         colour_penalty: f64,
         gate: f64,
     ) -> Option<Pair> {
+        // χ² ≥ |ν|²/λmax(S), and λmax(S) ≤ tr S ≤ ‖Hₚ‖²_F tr Pₚ + tr Sₗ + tr R:
+        // most landmarks near a detection fail the gate on this bound alone,
+        // before S is formed and inverted. (The factor keeps rounding from
+        // turning away a pair the exact χ² would take.)
+        let trace_bound = h_pose.norm_squared() * pose_cov.trace() + s_landmark.trace() + r.trace();
+        if innovation.norm_squared() > (gate - colour_penalty) * trace_bound * (1.0 + 1e-9) {
+            return None;
+        }
         let s_pose = h_pose * pose_cov * h_pose.transpose();
         let s_local = s_landmark + r;
         let s = s_pose + s_local;
@@ -360,6 +368,64 @@ impl<G: Fn(usize) -> f64> Jcbb<'_, G> {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use proptest::prelude::*;
+
+    /// A random symmetric positive definite 2×2 or 3×3 matrix from its
+    /// factor's entries.
+    fn spd<const N: usize>(entries: &[f64]) -> SMatrix<f64, N, N> {
+        let l = SMatrix::<f64, N, N>::from_fn(|i, j| if i >= j { entries[i * N + j] } else { 0.0 });
+        l * l.transpose() + SMatrix::<f64, N, N>::identity() * 1e-6
+    }
+
+    #[test]
+    fn the_trace_bound_is_tight_along_a_dominant_direction() {
+        // S ≈ diag(1, 1e-12) and ν along its first axis: χ² is |ν|²/tr S
+        // to 12 digits, so the bound alone decides nothing here.
+        let (innovation, no_pose) = (Vector2::new(3.0, 0.0), SMatrix::<f64, 2, 3>::zeros());
+        let s_landmark = Matrix2::new(1.0, 0.0, 0.0, 1e-12);
+        let (r, pose_cov) = (Matrix2::zeros(), nalgebra::Matrix3::identity());
+        let pair = |gate| {
+            Pair::new(
+                0,
+                innovation,
+                no_pose,
+                &r,
+                &s_landmark,
+                &pose_cov,
+                0.0,
+                gate,
+            )
+        };
+        assert!(pair(9.0 + 1e-9).is_some_and(|p| (p.d2 - 9.0).abs() < 1e-9));
+        assert!(pair(9.0 - 1e-9).is_none());
+    }
+
+    proptest! {
+        /// The trace bound in [`Pair::new`] turns away only pairs whose χ²
+        /// (with the colour penalty) exceeds the gate, and every pair it
+        /// lets through gets that χ².
+        #[test]
+        fn the_trace_bound_keeps_every_pair_within_the_gate(
+            nu in prop::array::uniform2(-4.0..4.0f64),
+            h in prop::array::uniform6(-2.0..2.0f64),
+            pose in prop::array::uniform9(-0.3..0.3f64),
+            lm in prop::array::uniform4(-1.0..1.0f64),
+            noise in prop::array::uniform4(-1.0..1.0f64),
+            penalty in prop::sample::select(vec![0.0, 4.0]),
+            gate in 0.5..60.0f64,
+        ) {
+            let innovation = Vector2::from(nu);
+            let h_pose = SMatrix::<f64, 2, 3>::from_row_slice(&h);
+            let (pose_cov, s_landmark, r) = (spd::<3>(&pose), spd::<2>(&lm), spd::<2>(&noise));
+            let s = h_pose * pose_cov * h_pose.transpose() + s_landmark + r;
+            let d2 = innovation.dot(&(s.try_inverse().unwrap() * innovation)) + penalty;
+            let pair = Pair::new(0, innovation, h_pose, &r, &s_landmark, &pose_cov, penalty, gate);
+            prop_assert_eq!(pair.is_some(), d2 <= gate, "χ² {} against gate {}", d2, gate);
+            if let Some(pair) = pair {
+                prop_assert!((pair.d2 - d2).abs() <= 1e-9 * d2.max(1.0));
+            }
+        }
+    }
 
     /// Candidates of detections against landmarks, all in the sensor frame
     /// with isotropic noise σ (the pose known).

@@ -9,6 +9,7 @@ mod bias;
 mod calibration;
 mod config;
 mod edges;
+mod grid;
 mod hindsight;
 mod landmarks;
 mod loop_closure;
@@ -17,6 +18,7 @@ mod window;
 pub use calibration::Calibration;
 pub use config::FrontEndConfig;
 use edges::{OdometryEdge, nearest_information, odometry_information};
+use grid::Grid;
 pub(crate) use optimise::MERGE_RADIUS;
 
 use crate::files::{Association, StampedPose};
@@ -408,7 +410,8 @@ impl GraphSlam {
         }
     }
 
-    /// Landmarks within the χ² `gate` of every detection, best first, and
+    /// Landmarks within the χ² `gate` of every detection (and within
+    /// [`INNOVATION`] of it), best first, and
     /// the χ² of the nearest landmark even when it fails the gate.
     fn candidates(
         &self,
@@ -433,17 +436,32 @@ impl GraphSlam {
                     && !self.awaits_loop_closure(l)
             })
             .collect();
+        // The landmarks as the car sees them, bucketed to find those within
+        // INNOVATION of a detection without a pass over all of them.
+        let local = Grid::new(
+            nearby
+                .iter()
+                .map(|&l| rt * (self.landmarks[l].mean - pose.t))
+                .collect(),
+            INNOVATION,
+        );
+        let mut near = Vec::new();
         cones
             .iter()
             .zip(covs)
             .map(|(d, r)| {
-                let mut pairs: Vec<Pair> = nearby
+                // In landmark order, as the sort below keeps ties.
+                near.clear();
+                near.extend(local.near(&d.position, INNOVATION));
+                near.sort_unstable();
+                let mut pairs: Vec<Pair> = near
                     .iter()
-                    .filter_map(|&l| {
+                    .filter_map(|&k| {
+                        let l = nearby[k];
                         let lm = &self.landmarks[l];
                         let diff = lm.mean - pose.t;
-                        let innovation = d.position - rt * diff;
-                        if innovation.norm() > 4.0 {
+                        let innovation = d.position - local.point(k);
+                        if innovation.norm() > INNOVATION {
                             return None;
                         }
                         let mut h_pose = SMatrix::<f64, 2, 3>::zeros();
@@ -583,6 +601,11 @@ impl GraphSlam {
 /// 99.9% gate matched 98.19% (`hard`) and 99.78% (`standard`) right, this
 /// one 98.32% and 99.83%, and 99.999% 98.28%.
 pub const FINAL_GATE: f64 = 18.42;
+
+/// Farthest a detection is paired with a landmark, whatever the
+/// uncertainty (m): no gate reaches this far for a cone, and it bounds the
+/// pairs to score.
+const INNOVATION: f64 = 4.0;
 
 /// χ² quantile at 99% for `dof` degrees of freedom (Wilson–Hilferty).
 pub fn chi2_99(dof: usize) -> f64 {
