@@ -19,7 +19,7 @@
 use super::bias::{OdometryBias, PoseBias};
 use super::{GraphSlam, Observation};
 use cairn_core::{BinaryEdge, EdgeSE2XY, SE2, Variable};
-use nalgebra::{DMatrix, DVector, Matrix2, Matrix3, SMatrix, Vector2, Vector3};
+use nalgebra::{DMatrix, DVector, Matrix2, Matrix3, Matrix4, SMatrix, Vector2, Vector3};
 
 /// Poses optimised per scan (2.5 s at 10 Hz: about how long a cone stays in view).
 pub(super) const WINDOW: usize = 25;
@@ -60,6 +60,7 @@ impl Prior {
 
 /// One sighting inside the window: pose block, landmark slot and the
 /// pose–landmark block of the Hessian.
+#[derive(Clone, Copy)]
 struct Coupling {
     pose: usize,
     slot: usize,
@@ -76,6 +77,10 @@ pub(super) struct Window {
     hll: Vec<Matrix2<f64>>,
     bl: Vec<Vector2<f64>>,
     couplings: Vec<Coupling>,
+    /// The couplings in sighting order, before they are grouped by slot.
+    unsorted: Vec<Coupling>,
+    /// Where the next coupling of each slot goes in `couplings`.
+    cursor: Vec<usize>,
     hpp: DMatrix<f64>,
     bp: DVector<f64>,
     /// Sightings before this index are folded into the landmark priors.
@@ -176,7 +181,7 @@ impl GraphSlam {
         }
         w.hpp.fill(0.0);
         w.bp.fill(0.0);
-        w.couplings.clear();
+        w.unsorted.clear();
         w.hll.clear();
         w.bl.clear();
         for &l in &w.members {
@@ -246,13 +251,13 @@ impl GraphSlam {
             add_vec(&mut w.bp, p, &(-(jx.transpose() * info * e)));
             w.hll[slot] += jl.transpose() * info * jl;
             w.bl[slot] -= jl.transpose() * info * e;
-            w.couplings.push(Coupling {
+            w.unsorted.push(Coupling {
                 pose: o.pose - anchor - 1,
                 slot,
                 block: jx.transpose() * info * jl,
             });
         }
-        w.couplings.sort_unstable_by_key(|c| c.slot);
+        w.group_by_slot();
     }
 
     /// The window's bias corrects the next odometry, and part of what the
@@ -296,6 +301,26 @@ struct Step {
 }
 
 impl Window {
+    /// Orders the couplings by landmark slot, each slot's in sighting order
+    /// (a counting sort: a comparison sort of the ~1,000 couplings of a
+    /// dense window cost as much as the linearisation).
+    fn group_by_slot(&mut self) {
+        let cursor = &mut self.cursor;
+        cursor.clear();
+        cursor.resize(self.members.len() + 1, 0);
+        for c in &self.unsorted {
+            cursor[c.slot + 1] += 1;
+        }
+        for slot in 1..cursor.len() {
+            cursor[slot] += cursor[slot - 1];
+        }
+        self.couplings.clone_from(&self.unsorted);
+        for c in &self.unsorted {
+            self.couplings[cursor[c.slot]] = *c;
+            cursor[c.slot] += 1;
+        }
+    }
+
     /// Eliminates the landmarks (Schur complement), solves for the poses and
     /// back-substitutes. `None` if the reduced system is not positive definite.
     fn solve(&mut self, m: usize) -> Option<Step> {
@@ -312,14 +337,17 @@ impl Window {
         let chol = std::mem::take(&mut self.hpp).cholesky()?;
         let dp = chol.solve(&b);
         let n = 3 * m;
-        // The last pose and the bias: the last four columns of S⁻¹.
-        let mut unit = DMatrix::zeros(n + 1, 4);
-        for k in 0..4 {
-            unit[(n - 3 + k, k)] = 1.0;
-        }
-        let columns = chol.solve(&unit);
-        let cov: Matrix3<f64> = columns.fixed_view::<3, 3>(n - 3, 0).into_owned();
-        let bias_variance = columns[(n, 3)];
+        // The last pose and the bias are the last four unknowns, and the
+        // last 4×4 block of S⁻¹ = L⁻ᵀL⁻¹ is (L₂₂L₂₂ᵀ)⁻¹, from the last
+        // 4×4 block of L alone (L⁻¹ is lower triangular too).
+        let l22: Matrix4<f64> = chol
+            .l_dirty()
+            .fixed_view::<4, 4>(n - 3, n - 3)
+            .lower_triangle();
+        let l22_inverse = l22.try_inverse()?;
+        let last = l22_inverse.transpose() * l22_inverse;
+        let cov: Matrix3<f64> = last.fixed_view::<3, 3>(0, 0).into_owned();
+        let bias_variance = last[(3, 3)];
         // The factor's storage is the next scan's Hessian.
         self.hpp = chol.unpack();
         let mut dl = Vec::with_capacity(self.bl.len());
@@ -378,4 +406,95 @@ fn add_block<const R: usize, const C: usize>(
 fn add_vec(b: &mut DVector<f64>, row: usize, v: &Vector3<f64>) {
     let mut view = b.fixed_rows_mut::<3>(row);
     view += v;
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use rand::{Rng, SeedableRng, rngs::StdRng};
+
+    /// A random window of `m` poses, the bias and `landmarks` landmarks, each
+    /// seen from some of the poses, and the same system written out in full
+    /// (diagonally dominant, so positive definite).
+    fn random_window(
+        rng: &mut StdRng,
+        m: usize,
+        landmarks: usize,
+    ) -> (Window, DMatrix<f64>, DVector<f64>) {
+        let n = 3 * m + 1;
+        let size = n + 2 * landmarks;
+        let entry = |rng: &mut StdRng| rng.random_range(-1.0..1.0);
+        let mut h = DMatrix::zeros(size, size);
+        for i in 0..n {
+            for j in 0..=i {
+                h[(i, j)] = entry(rng);
+                h[(j, i)] = h[(i, j)];
+            }
+            h[(i, i)] = (n + 2 * landmarks + 1) as f64;
+        }
+        let mut w = Window::default();
+        for slot in 0..landmarks {
+            let row = n + 2 * slot;
+            let off = entry(rng);
+            h.fixed_view_mut::<2, 2>(row, row).copy_from(&Matrix2::new(
+                (3 * m + 2) as f64,
+                off,
+                off,
+                (3 * m + 2) as f64,
+            ));
+            for pose in 0..m {
+                if rng.random_bool(0.6) {
+                    let block = SMatrix::<f64, 3, 2>::from_fn(|_, _| entry(rng));
+                    h.fixed_view_mut::<3, 2>(3 * pose, row).copy_from(&block);
+                    h.fixed_view_mut::<2, 3>(row, 3 * pose)
+                        .copy_from(&block.transpose());
+                    w.unsorted.push(Coupling { pose, slot, block });
+                }
+            }
+            w.members.push(slot);
+            w.hll.push(h.fixed_view::<2, 2>(row, row).into_owned());
+        }
+        let b = DVector::from_fn(size, |_, _| rng.random_range(-1.0..1.0));
+        w.hpp = h.view((0, 0), (n, n)).lower_triangle();
+        w.bp = b.rows(0, n).into_owned();
+        w.bl = (0..landmarks)
+            .map(|slot| b.fixed_rows::<2>(n + 2 * slot).into_owned())
+            .collect();
+        w.group_by_slot();
+        (w, h, b)
+    }
+
+    #[test]
+    fn the_reduced_solve_and_the_latest_marginal_match_the_full_system() {
+        let mut rng = StdRng::seed_from_u64(3);
+        for (m, landmarks) in [(1, 1), (2, 3), (5, 8), (25, 40)] {
+            let (mut w, h, b) = random_window(&mut rng, m, landmarks);
+            let step = w.solve(m).expect("positive definite");
+            let inverse = h.clone().cholesky().expect("positive definite").inverse();
+            let full = &inverse * &b;
+            let n = 3 * m;
+            let close = |a: f64, e: f64| (a - e).abs() <= 1e-9 * (1.0 + e.abs());
+            for i in 0..=n {
+                assert!(close(step.poses[i], full[i]), "pose {i} of {m}");
+            }
+            for (slot, dl) in step.landmarks.iter().enumerate() {
+                for k in 0..2 {
+                    assert!(
+                        close(dl[k], full[n + 1 + 2 * slot + k]),
+                        "landmark {slot} of {m}"
+                    );
+                }
+            }
+            for i in 0..3 {
+                for j in 0..3 {
+                    assert!(close(
+                        step.latest_cov[(i, j)],
+                        inverse[(n - 3 + i, n - 3 + j)]
+                    ));
+                }
+            }
+            assert!(close(step.bias, full[n]));
+            assert!(close(step.bias_variance, inverse[(n, n)]));
+        }
+    }
 }
