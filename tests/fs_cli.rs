@@ -185,3 +185,73 @@ fn every_estimator_and_point_clouds_run_from_the_command_line() {
     assert_eq!(report["phantom"], 0, "{report}");
     assert!(report["map_rmse"].as_f64().unwrap() < 0.2, "{report}");
 }
+
+/// Median distance from each blue or yellow cone of `truth_map.csv` in
+/// `dir` to the nearest cone of its colour (m).
+fn boundary_spacing(dir: &Path) -> f64 {
+    let text = std::fs::read_to_string(dir.join("truth_map.csv")).unwrap();
+    let cones: Vec<(String, f64, f64)> = text
+        .lines()
+        .skip(1)
+        .map(|line| {
+            let f: Vec<&str> = line.split(',').collect();
+            (
+                f[0].to_string(),
+                f[1].parse().unwrap(),
+                f[2].parse().unwrap(),
+            )
+        })
+        .filter(|(tag, _, _)| tag == "blue" || tag == "yellow")
+        .collect();
+    let mut gaps: Vec<f64> = cones
+        .iter()
+        .enumerate()
+        .map(|(i, (tag, x, y))| {
+            cones
+                .iter()
+                .enumerate()
+                .filter(|(j, (other, _, _))| *j != i && other == tag)
+                .map(|(_, (_, u, v))| (u - x).hypot(v - y))
+                .fold(f64::INFINITY, f64::min)
+        })
+        .collect();
+    gaps.sort_by(f64::total_cmp);
+    gaps[gaps.len() / 2]
+}
+
+#[test]
+fn the_cone_spacing_of_a_random_track_can_be_chosen() {
+    for (spacing, low, high) in [("1.5,2", 1.5, 2.0), ("4", 4.0, 4.0)] {
+        let dir = temp_dir(&format!("spacing-{spacing}"));
+        let args = ["fs-sim", "--seed", "3", "--laps", "0.2"];
+        let o = cairn(&[&args[..], &["--cone-spacing", spacing, "-o", s(&dir)]].concat());
+        assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+        // Spread evenly along a curved boundary: a little under the spacing drawn.
+        let median = boundary_spacing(&dir);
+        assert!(
+            median > 0.9 * low && median <= high + 1e-9,
+            "{spacing}: {median}"
+        );
+    }
+    let dir = temp_dir("spacing-default");
+    let o = cairn(&["fs-sim", "--seed", "3", "--laps", "0.2", "-o", s(&dir)]);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    assert!(boundary_spacing(&dir) > 2.7);
+
+    let track = "tracks/any.csv";
+    for bad in [
+        vec!["--cone-spacing", "2,1"],
+        vec!["--cone-spacing", "0"],
+        vec!["--cone-spacing", "6"],
+        vec!["--cone-spacing", "nan"],
+        vec!["--cone-spacing", "2", "--track", track],
+    ] {
+        let args = [&["fs-sim", "-o", s(&dir)][..], &bad[..]].concat();
+        let o = cairn(&args);
+        assert!(!o.status.success(), "{bad:?} accepted");
+        assert!(
+            String::from_utf8_lossy(&o.stderr).contains("--cone-spacing"),
+            "{bad:?}"
+        );
+    }
+}

@@ -17,7 +17,8 @@ pub struct TrackRules {
     pub length: (f64, f64),
     /// Track width range (m).
     pub width: (f64, f64),
-    /// Cone spacing along a boundary, range (m); the upper end is the rule's 5 m.
+    /// Cone spacing along a boundary, range (m); the upper end is the rule's
+    /// 5 m. Equal ends give that spacing.
     pub spacing: (f64, f64),
     /// Smallest radius of the centre line's curvature (m).
     pub min_radius: f64,
@@ -104,7 +105,12 @@ fn attempt(rng: &mut StdRng, seed: u64, rules: &TrackRules) -> Option<(Track, Co
             }
         }
     }
-    let spacing = rng.random_range(rules.spacing.0..rules.spacing.1);
+    let (low, high) = rules.spacing;
+    let spacing = if low < high {
+        rng.random_range(low..high)
+    } else {
+        low
+    };
     let mut cones = Vec::new();
     for (color, side) in [(Color::Blue, 1.0), (Color::Yellow, -1.0)] {
         let offset: Vec<Vector2<f64>> = (0..m)

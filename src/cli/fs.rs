@@ -50,6 +50,12 @@ pub struct SimArgs {
     /// (`fs-report`'s `random-N` is `--track-seed N`).
     #[arg(long)]
     track_seed: Option<u64>,
+    /// Cone spacing along each boundary of the random track (m): `MIN,MAX`
+    /// to draw it from that range, or one value. The rules allow up to 5 m;
+    /// the default 3,5 is how the report's random tracks are made, 1.5,2 is
+    /// as tight as the EUFS tracks.
+    #[arg(long, value_name = "MIN[,MAX]", value_delimiter = ',', num_args = 1..=2)]
+    cone_spacing: Option<Vec<f64>>,
     /// Output directory: log.jsonl, truth_traj.tum, truth_assoc.csv, truth_map.csv.
     #[arg(short, long)]
     out: PathBuf,
@@ -155,11 +161,30 @@ fn read_text(path: &Path) -> Result<String, String> {
     std::fs::read_to_string(path).map_err(|e| format!("{}: {e}", path.display()))
 }
 
+/// The rules of `fs-sim`'s random track.
+fn track_rules(a: &SimArgs) -> Result<TrackRules, String> {
+    let mut rules = TrackRules::default();
+    if let Some(spacing) = &a.cone_spacing {
+        if a.track.is_some() {
+            return Err("--cone-spacing applies to random tracks only, not to --track".into());
+        }
+        let (min, max) = (spacing[0], *spacing.last().unwrap_or(&spacing[0]));
+        if !(min > 0.0 && min <= max && max <= 5.0) {
+            return Err(format!(
+                "--cone-spacing must be MIN,MAX with 0 < MIN <= MAX <= 5 m (the rules' largest), got {min},{max}"
+            ));
+        }
+        rules.spacing = (min, max);
+    }
+    Ok(rules)
+}
+
 pub fn run_sim(a: SimArgs) -> Result<(), String> {
     let preset = Preset::by_name(&a.preset).ok_or("--preset must be standard or hard")?;
     if !(a.laps > 0.0 && a.speed > 0.0 && a.laps.is_finite() && a.speed.is_finite()) {
         return Err("--laps and --speed must be positive".into());
     }
+    let rules = track_rules(&a)?;
     let (track, course) = match &a.track {
         Some(path) => {
             let track = Track::load(path).map_err(|e| format!("{}: {e}", path.display()))?;
@@ -167,7 +192,7 @@ pub fn run_sim(a: SimArgs) -> Result<(), String> {
                 Course::from_track(&track).map_err(|e| format!("{}: {e}", path.display()))?;
             (track, course)
         }
-        None => random_track(a.track_seed.unwrap_or(a.seed), &TrackRules::default()),
+        None => random_track(a.track_seed.unwrap_or(a.seed), &rules),
     };
     let config = SimConfig {
         preset,
