@@ -19,6 +19,13 @@
 use super::bias::{OdometryBias, PoseBias};
 use super::{GraphSlam, Observation};
 use cairn_core::{BinaryEdge, EdgeSE2XY, SE2, Variable};
+use faer::dyn_stack::{MemBuffer, MemStack};
+use faer::linalg::cholesky::llt::factor::{
+    LltRegularization, cholesky_in_place, cholesky_in_place_scratch,
+};
+use faer::linalg::cholesky::llt::solve::solve_in_place_with_conj;
+use faer::reborrow::{Reborrow, ReborrowMut};
+use faer::{Conj, MatMut, Par};
 use nalgebra::{DMatrix, DVector, Matrix2, Matrix3, Matrix4, SMatrix, Vector2, Vector3};
 
 /// Poses optimised per scan (2.5 s at 10 Hz: about how long a cone stays in view).
@@ -81,8 +88,11 @@ pub(super) struct Window {
     unsorted: Vec<Coupling>,
     /// Where the next coupling of each slot goes in `couplings`.
     cursor: Vec<usize>,
+    /// The reduced system's lower triangle; its factor L after [`Window::solve`].
     hpp: DMatrix<f64>,
     bp: DVector<f64>,
+    /// Work space of the factorisation, and the size it was made for.
+    scratch: Option<(usize, MemBuffer)>,
     /// Sightings before this index are folded into the landmark priors.
     folded: usize,
     /// Prior on the yaw-rate bias from the windows before: mean (rad/s)
@@ -236,8 +246,8 @@ impl GraphSlam {
             }
             let edge = EdgeSE2XY::new(o.z);
             let (x, mean) = (&self.poses[o.pose].pose, &self.landmarks[l].mean);
-            let e = edge.error(x, mean);
-            let (jx, jl) = edge.jacobians(x, mean);
+            // One sine and cosine for the error and both Jacobians.
+            let (e, jx, jl) = edge.linearize(x, mean);
             let chi2 = (e.transpose() * o.information * e)[(0, 0)];
             let weight = if chi2 > HUBER_CHI2 {
                 (HUBER_CHI2 / chi2).sqrt()
@@ -334,22 +344,39 @@ impl Window {
                 add_vec(&mut b, 3 * c.pose, &-(c.block * y));
             }
         }
-        let chol = std::mem::take(&mut self.hpp).cholesky()?;
-        let dp = chol.solve(&b);
+        // S = LLᵀ in place (faer's dense factorisation, several times
+        // nalgebra's speed at this size), then S δ = b.
+        let size = self.hpp.nrows();
+        if self.scratch.as_ref().is_none_or(|(dim, _)| *dim != size) {
+            let needed = cholesky_in_place_scratch::<f64>(size, Par::Seq, Default::default());
+            self.scratch = Some((size, MemBuffer::new(needed)));
+        }
+        let (_, scratch) = self.scratch.as_mut()?;
+        let no_regularization = LltRegularization {
+            dynamic_regularization_delta: 0.0,
+            dynamic_regularization_epsilon: 0.0,
+        };
+        let mut l = MatMut::from_column_major_slice_mut(self.hpp.as_mut_slice(), size, size);
+        cholesky_in_place(
+            l.rb_mut(),
+            no_regularization,
+            Par::Seq,
+            MemStack::new(scratch),
+            Default::default(),
+        )
+        .ok()?;
+        let mut dp = b;
+        let rhs = MatMut::from_column_major_slice_mut(dp.as_mut_slice(), size, 1);
+        solve_in_place_with_conj(l.rb(), Conj::No, rhs, Par::Seq, MemStack::new(scratch));
         let n = 3 * m;
         // The last pose and the bias are the last four unknowns, and the
         // last 4×4 block of S⁻¹ = L⁻ᵀL⁻¹ is (L₂₂L₂₂ᵀ)⁻¹, from the last
         // 4×4 block of L alone (L⁻¹ is lower triangular too).
-        let l22: Matrix4<f64> = chol
-            .l_dirty()
-            .fixed_view::<4, 4>(n - 3, n - 3)
-            .lower_triangle();
+        let l22: Matrix4<f64> = self.hpp.fixed_view::<4, 4>(n - 3, n - 3).lower_triangle();
         let l22_inverse = l22.try_inverse()?;
         let last = l22_inverse.transpose() * l22_inverse;
         let cov: Matrix3<f64> = last.fixed_view::<3, 3>(0, 0).into_owned();
         let bias_variance = last[(3, 3)];
-        // The factor's storage is the next scan's Hessian.
-        self.hpp = chol.unpack();
         let mut dl = Vec::with_capacity(self.bl.len());
         for (slot, bl) in self.bl.iter().enumerate() {
             dl.push(inverses[slot] * bl);
