@@ -220,10 +220,10 @@ pub fn run(a: ReportArgs) -> Result<(), String> {
          the map cones near an aligned detection, and the landmarks near each detection, \
          found through a bucket grid instead of a pass over the map, the trace of the \
          innovation covariance turning away most pairs before it is inverted, and the \
-         smoothing window's couplings grouped by a counting sort, recognition there costs \
-         about half of the 0.5–1.2 ms it did, and the whole update 20% fewer instructions: \
-         that track's `standard` p99 went from 0.94–1.19 ms to 0.92–0.98 ms under every method \
-         but JCBB, on a day this machine ran about 1.5× slower (hairpins' loop closure, run \
+         smoothing window's couplings grouped by a counting sort and its system factored by \
+         faer, recognition there costs about half of the 0.5–1.2 ms it did, and the whole update \
+         29% fewer instructions: that track's `standard` p99 went from 0.94–1.19 ms to \
+         0.70–0.87 ms under every method but JCBB, on a day this machine ran about 1.5× slower (hairpins' loop closure, run \
          alone, 17–24 ms against 10–16).\n\
          - **`hard` preset** (15 tracks × 10 seeds, tracking): 2° bearings and one false \
          positive per scan. From map RMSE 0.297 m, association 91.1% and 109 of 150 loops \
