@@ -16,8 +16,8 @@ const INNOVATION: f64 = 4.0;
 
 impl GraphSlam {
     /// Landmarks within the χ² `gate` of every detection (and within
-    /// [`INNOVATION`] of it), best first, and
-    /// the χ² of the nearest landmark even when it fails the gate.
+    /// [`INNOVATION`] of it), best first, and the χ² of the nearest landmark
+    /// even when it fails the gate.
     pub(super) fn candidates(
         &self,
         pose: &SE2,
