@@ -91,8 +91,8 @@ pub(super) struct Window {
     /// The reduced system's lower triangle; its factor L after [`Window::solve`].
     hpp: DMatrix<f64>,
     bp: DVector<f64>,
-    /// Work space of the factorisation, and the size it was made for.
-    scratch: Option<(usize, MemBuffer)>,
+    /// Work space of the factorisation.
+    scratch: Option<MemBuffer>,
     /// Sightings before this index are folded into the landmark priors.
     folded: usize,
     /// Prior on the yaw-rate bias from the windows before: mean (rad/s)
@@ -347,11 +347,16 @@ impl Window {
         // S = LLᵀ in place (faer's dense factorisation, several times
         // nalgebra's speed at this size), then S δ = b.
         let size = self.hpp.nrows();
-        if self.scratch.as_ref().is_none_or(|(dim, _)| *dim != size) {
-            let needed = cholesky_in_place_scratch::<f64>(size, Par::Seq, Default::default());
-            self.scratch = Some((size, MemBuffer::new(needed)));
-        }
-        let (_, scratch) = self.scratch.as_mut()?;
+        debug_assert!(m <= WINDOW, "a window of {m} poses");
+        // Made once, for the largest window (enough for the smaller ones).
+        let scratch = self.scratch.get_or_insert_with(|| {
+            let largest = 3 * WINDOW + 1;
+            MemBuffer::new(cholesky_in_place_scratch::<f64>(
+                largest,
+                Par::Seq,
+                Default::default(),
+            ))
+        });
         let no_regularization = LltRegularization {
             dynamic_regularization_delta: 0.0,
             dynamic_regularization_epsilon: 0.0,
