@@ -4,7 +4,7 @@
 
 use super::{Choice, Run, candidates, clear_of, landmark_from, measurement, predict};
 use crate::files::{Association, StampedPose};
-use crate::frontend::association::Pair;
+use crate::frontend::association::{Correlation, Pair};
 use crate::frontend::{FrontEndConfig, Mode, Timing};
 use crate::log::{Detection, Record};
 use crate::motion::compose_jacobians;
@@ -288,10 +288,14 @@ impl EkfSlam {
                 + ha * p.fixed_view::<2, 3>(sa, 0) * b.h_pose.transpose()
                 + ha * p.fixed_view::<2, 2>(sa, sb) * hb.transpose()
         };
-        self.run
-            .choose(scan, &candidates, &nearest, &tracked, &correlation, |i| {
-                clear_of(&pose.transform_point(&cones[i].position), means.iter())
-            })
+        self.run.choose(
+            scan,
+            &candidates,
+            &nearest,
+            &tracked,
+            Correlation::General(&correlation),
+            |i| clear_of(&pose.transform_point(&cones[i].position), means.iter()),
+        )
     }
 
     /// The joint EKF update with one range-bearing measurement of the

@@ -8,7 +8,7 @@ use super::{Choice, Run, candidates, clear_of, landmark_from, measurement};
 use crate::color::Color;
 use crate::files::{Association, StampedPose};
 use crate::frontend::align;
-use crate::frontend::association::through_pose;
+use crate::frontend::association::Correlation;
 use crate::frontend::{FrontEndConfig, MERGE_RADIUS, Mode, Timing};
 use crate::log::{Detection, Record};
 use crate::motion::compose_jacobians;
@@ -381,7 +381,7 @@ impl FastSlam {
             &candidates,
             &nearest,
             &tracked,
-            &through_pose(&at_cov),
+            Correlation::ThroughPose(&at_cov),
             |i| {
                 let w = at.transform_point(&cones[i].position);
                 clear_of(

@@ -4,7 +4,10 @@
 //! individually compatible landmarks (Mahalanobis χ² gate on the innovation,
 //! plus a penalty for a colour that contradicts the landmark's votes).
 
-use nalgebra::{DMatrix, DVector, Matrix2, SMatrix, Vector2};
+mod jcbb;
+
+use jcbb::jcbb;
+use nalgebra::{Matrix2, SMatrix, Vector2};
 
 /// How detections are matched to landmarks.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
@@ -130,22 +133,22 @@ impl Pair {
 /// For each detection, its compatible pairs sorted by cost.
 pub type Candidates = Vec<Vec<Pair>>;
 
-/// The covariance between the predicted measurements of two pairs of
-/// different detections, when more than the pose correlates them (EKF-SLAM's
-/// landmarks are correlated with the pose and with each other).
-pub type Correlation<'a> = &'a dyn Fn(&Pair, &Pair) -> Matrix2<f64>;
-
-/// Pairs correlated only through a pose of covariance `pose_cov`: Hₚ,a P Hₚ,bᵀ.
-pub fn through_pose(
-    pose_cov: &nalgebra::Matrix3<f64>,
-) -> impl Fn(&Pair, &Pair) -> Matrix2<f64> + '_ {
-    move |a, b| a.h_pose * pose_cov * b.h_pose.transpose()
+/// How the predicted measurements of pairs of different detections are
+/// correlated, for JCBB's joint test.
+#[derive(Clone, Copy)]
+pub enum Correlation<'a> {
+    /// Only through a pose of this covariance: Hₚ,a P Hₚ,bᵀ. The joint
+    /// covariance is then block diagonal plus rank 3, and JCBB tests a
+    /// hypothesis in constant time per pair.
+    ThroughPose(&'a nalgebra::Matrix3<f64>),
+    /// Any cross-covariance, as EKF-SLAM's landmarks correlated with the
+    /// pose and with each other.
+    General(&'a dyn Fn(&Pair, &Pair) -> Matrix2<f64>),
 }
 
 /// Chooses a landmark (or none) for every detection. `tracked[i]` is the
 /// landmark the tracker id of detection i pointed at in earlier scans.
-/// JCBB correlates the pairs by `correlation` ([`through_pose`] when only
-/// the pose is uncertain jointly).
+/// JCBB correlates the pairs by `correlation`.
 pub fn associate(
     method: AssociationMethod,
     candidates: &Candidates,
@@ -261,110 +264,6 @@ fn sequential(candidates: &Candidates) -> Vec<Option<usize>> {
     result
 }
 
-/// Branch and bound over the detections: the hypothesis with the most
-/// pairings whose stacked innovation passes the joint χ² test (ties: the
-/// smaller joint distance). The search stops after a node budget and keeps
-/// the best hypothesis found, so a dense scan cannot stall an update.
-fn jcbb(
-    candidates: &Candidates,
-    correlation: Correlation,
-    joint_gate: impl Fn(usize) -> f64,
-) -> Vec<Option<usize>> {
-    let n = candidates.len();
-    let mut search = Jcbb {
-        candidates,
-        correlation,
-        gate: &joint_gate,
-        best: vec![None; n],
-        best_pairs: 0,
-        best_d2: f64::INFINITY,
-        nodes: 0,
-    };
-    let mut current = vec![None; n];
-    search.recurse(0, &mut current, 0);
-    search.best
-}
-
-struct Jcbb<'a, G: Fn(usize) -> f64> {
-    candidates: &'a Candidates,
-    correlation: Correlation<'a>,
-    gate: &'a G,
-    best: Vec<Option<usize>>,
-    best_pairs: usize,
-    best_d2: f64,
-    nodes: usize,
-}
-
-const JCBB_NODE_BUDGET: usize = 200;
-
-impl<G: Fn(usize) -> f64> Jcbb<'_, G> {
-    fn recurse(&mut self, i: usize, current: &mut Vec<Option<usize>>, pairs: usize) {
-        self.nodes += 1;
-        let n = self.candidates.len();
-        if i == n {
-            let d2 = self.joint_d2(current);
-            if pairs > self.best_pairs || (pairs == self.best_pairs && d2 < self.best_d2) {
-                self.best = current.clone();
-                self.best_pairs = pairs;
-                self.best_d2 = d2;
-            }
-            return;
-        }
-        if self.nodes > JCBB_NODE_BUDGET {
-            return;
-        }
-        for k in 0..self.candidates[i].len() {
-            let l = self.candidates[i][k].landmark;
-            if current.contains(&Some(l)) {
-                continue;
-            }
-            current[i] = Some(l);
-            let d2 = self.joint_d2(current);
-            if d2 < (self.gate)(pairs + 1) {
-                self.recurse(i + 1, current, pairs + 1);
-            }
-            current[i] = None;
-        }
-        // Leaving detection i unpaired can only help if it can still beat the best.
-        if pairs + (n - i - 1) >= self.best_pairs.max(1) {
-            self.recurse(i + 1, current, pairs);
-        }
-    }
-
-    /// Joint Mahalanobis distance of the paired innovations; the pose
-    /// uncertainty correlates them.
-    fn joint_d2(&self, current: &[Option<usize>]) -> f64 {
-        let chosen: Vec<&Pair> = current
-            .iter()
-            .enumerate()
-            .filter_map(|(i, l)| {
-                l.and_then(|l| self.candidates[i].iter().find(|p| p.landmark == l))
-            })
-            .collect();
-        let m = chosen.len();
-        if m == 0 {
-            return 0.0;
-        }
-        let mut s = DMatrix::<f64>::zeros(2 * m, 2 * m);
-        let mut nu = DVector::<f64>::zeros(2 * m);
-        for (a, pa) in chosen.iter().enumerate() {
-            nu.fixed_rows_mut::<2>(2 * a).copy_from(&pa.innovation);
-            for (b, pb) in chosen.iter().enumerate() {
-                let block = if a == b {
-                    pa.s_pose + pa.s_local
-                } else {
-                    (self.correlation)(pa, pb)
-                };
-                s.fixed_view_mut::<2, 2>(2 * a, 2 * b).copy_from(&block);
-            }
-        }
-        match s.cholesky() {
-            Some(c) => nu.dot(&c.solve(&nu)),
-            None => f64::INFINITY,
-        }
-    }
-}
-
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -472,7 +371,7 @@ mod tests {
             c,
             &vec![None; n],
             |_| 0.0,
-            &|_, _| Matrix2::zeros(),
+            Correlation::General(&|_, _| Matrix2::zeros()),
         )
     }
 
@@ -505,7 +404,7 @@ mod tests {
             &c,
             &tracked,
             |_| 0.0,
-            &|_, _| Matrix2::zeros(),
+            Correlation::General(&|_, _| Matrix2::zeros()),
         );
         assert_eq!(result, vec![Some(0), Some(1)]);
     }

@@ -2,7 +2,7 @@
 //! recognition when drift hides them from the gates, the full optimisation
 //! that follows, and placing the car on a given map.
 
-use super::association::{AssociationMethod, Candidates, associate, through_pose};
+use super::association::{AssociationMethod, Candidates, Correlation, associate};
 use super::{GraphSlam, Mode, Observation, align, chi2_99, nearest_information};
 use crate::color::Color;
 use crate::log::Detection;
@@ -244,7 +244,7 @@ impl GraphSlam {
                 &candidates,
                 &vec![None; candidates.len()],
                 |pairs| chi2_99(2 * pairs),
-                &through_pose(&pose_cov),
+                Correlation::ThroughPose(&pose_cov),
             );
             for (i, l) in assigned.iter().enumerate() {
                 let Some(l) = *l else { continue };

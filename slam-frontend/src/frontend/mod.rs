@@ -26,7 +26,7 @@ use crate::log::{Detection, Record};
 use crate::motion::{Odometry, compose_with_cov};
 use crate::sighting::{MIN_LOOP, Sighting};
 use crate::track::Cone;
-use association::{associate, through_pose};
+use association::{Correlation, associate};
 use cairn_core::SE2;
 use nalgebra::{Matrix2, Matrix3, SMatrix, Vector2};
 use std::collections::HashMap;
@@ -300,7 +300,7 @@ impl GraphSlam {
             &candidates,
             &tracked,
             joint_gate,
-            &through_pose(&pred_cov),
+            Correlation::ThroughPose(&pred_cov),
         );
 
         // Local pose optimisation: odometry prior plus the matched landmarks.
