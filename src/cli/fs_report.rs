@@ -131,27 +131,33 @@ pub fn run(a: ReportArgs) -> Result<(), String> {
          scan at 0.5° and the gyro's 0.1 mrad per sample is 0.04°), and 0.075° is 0.13–0.18 m \
          at the 100–140 m the far cones of epfl_fsds_competition_1, random-0 and random-1 stand \
          from the start: these miss 0.10 m unaligned, not aligned.\n\
-         - **The loop-closure optimisation uses 8 sightings of each landmark**, spread over its \
-         history, to bound its time. The final optimisation takes all of them (up to ~300 per \
+         - **The loop-closure optimisation uses at most 8 sightings of each landmark**: \
+         those within 8 m when it has two, spread over its history, and always its latest, the \
+         one that closes the loop. The final optimisation takes all of them (up to ~300 per \
          landmark on the hairpins), so the loop closure only has to give the later laps a map to \
          localise on: 8, 12, 16 and 24 sightings gave the same final map and association on 15 \
          tracks × 10 seeds, both presets (0.0762 / 0.1635 m, 99.84% / 97.5% of detections, per \
-         track within 0.06 points), and the hairpins' loop closure (run alone) 15, 18, 21 and \
-         23 ms.\n\
+         track within 0.06 points). Far sightings matter for time: cones seen across the \
+         hairpins' legs from 10–15 m couple poses of different legs, and with them the factor \
+         had 506,000 non-zeros instead of 231,000; over this report's runs leaving them out \
+         changed neither the final map nor the association (`standard` 0.080–0.081 m and \
+         99.74–99.97% against 0.080–0.081 m and 99.75–99.97%), while leaving out the latest \
+         sighting too broke the loops that close on far sightings of the start area \
+         (epfl_fsds_competition_1: 44% association).\n\
          - **Loop closure time** is one Hessian structure, its symbolic analysis and one \
          Gauss–Newton step over every 4th pose (with its bias) and the landmarks (the poses \
          between follow; the final optimisation refines them all). Every pose and two steps took \
          160 ms on the 828 m hairpins, whose tight turns let each cone be seen from far more \
-         poses. Run alone at every 4th pose (3,600 unknowns, 8,200 edges): building the graph ~1.5 ms, \
-         structure and symbolic analysis ~5.5 ms, the step ~7 ms, of which ~4.4 ms is the \
-         numeric factorisation: cones seen across the hairpin legs couple most of the kept \
-         poses, so the factor has ~510,000 non-zeros under every ordering tried (AMD, block AMD, \
-         landmarks first), and faer's two-thread factorisation was slower. Fewer poses thin it \
+         poses. Run alone at every 4th pose (maximum likelihood, seed 0: 3,600 unknowns, 5,500 \
+         edges): building the graph ~2.5 ms, structure and symbolic analysis ~4 ms, the step \
+         ~6.5 ms, of which ~4 ms is the numeric factorisation, and merging duplicate landmarks \
+         ~1 ms; 17–24 ms in all on a day this machine ran slow, against 27–37 ms with the far \
+         sightings. Fewer poses thin the factor \
          but cost association: every 6th pose 99.52 → 99.48% (15 tracks × 10 seeds), every 8th \
          99.22% (measured before the exchange step). Tracking association, whose detections \
          are all matched again in hindsight at the end of the run, keeps every 8th pose: the \
          same final association (15 tracks × 5 seeds: 99.97% / 99.48%, against 99.97% / 99.49% \
-         at every 4th) and the hairpins' loop closure 20–33 → 12–16 ms run alone (maximum \
+         at every 4th) and a shorter loop closure (maximum \
          likelihood, without that pass, lost 99.83 → 99.71% `standard` at every 8th and keeps \
          every 4th). This report runs two runs at once, and \
          latencies on this shared 2-core machine vary up to 3× between identical runs and \
@@ -223,8 +229,7 @@ pub fn run(a: ReportArgs) -> Result<(), String> {
          smoothing window's couplings grouped by a counting sort and its system factored by \
          faer, recognition there costs about half of the 0.5–1.2 ms it did, and the whole update \
          29% fewer instructions: that track's `standard` p99 went from 0.94–1.19 ms to \
-         0.70–0.87 ms under every method but JCBB, on a day this machine ran about 1.5× slower (hairpins' loop closure, run \
-         alone, 17–24 ms against 10–16).\n\
+         0.70–0.87 ms.\n\
          - **`hard` preset** (15 tracks × 10 seeds, tracking): 2° bearings and one false \
          positive per scan. From map RMSE 0.297 m, association 91.1% and 109 of 150 loops \
          closed to 0.163 m, 98.3% and 149, in turn: the gyro bias is estimated in the smoothing \
@@ -249,7 +254,13 @@ pub fn run(a: ReportArgs) -> Result<(), String> {
          the first lap saw too rarely to confirm; with the end-of-run matching and clutter \
          judgement it gains nothing over localising (15 tracks × 10 seeds: association 99.81% \
          `standard`, 98.09% `hard`; map RMSE 0.077 and 0.169 m).\n\
-         - **JCBB**'s p99 exceeds 1 ms where 30 or more cones are in view (eufs_comp_2021, hairpins).\n"
+         - **JCBB** tests a hypothesis in constant time per pair where only the pose \
+         correlates the pairs (graph SLAM, FastSLAM): the stacked innovation covariance is \
+         block diagonal plus rank 3, and its joint distance follows from three running sums \
+         (Woodbury). For EKF-SLAM, whose landmarks are correlated, the factor of the stacked \
+         covariance grows a block row per pair. Factoring it anew at every node had taken \
+         eufs_comp_2021's `standard` p99 to 15–17 ms and the hairpins' to 13 ms (30–70 \
+         cones in view); run alone, the same associations now take 0.7–1.0 and 0.5 ms.\n"
     );
     for preset in ["standard", "hard"] {
         let _ = writeln!(md, "## Summary, `{preset}` preset (all tracks)\n");
