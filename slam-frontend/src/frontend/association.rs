@@ -89,12 +89,13 @@ impl Pair {
         colour_penalty: f64,
         gate: f64,
     ) -> Option<Pair> {
-        // χ² ≥ |ν|²/λmax(S), and λmax(S) ≤ tr S ≤ ‖Hₚ‖²_F tr Pₚ + tr Sₗ + tr R:
-        // most landmarks near a detection fail the gate on this bound alone,
-        // before S is formed and inverted. (The factor keeps rounding from
-        // turning away a pair the exact χ² would take.)
-        let trace_bound = h_pose.norm_squared() * pose_cov.trace() + s_landmark.trace() + r.trace();
-        if innovation.norm_squared() > (gate - colour_penalty) * trace_bound * (1.0 + 1e-9) {
+        if beyond_gate(
+            innovation.norm_squared(),
+            h_pose.norm_squared(),
+            pose_cov.trace(),
+            s_landmark.trace() + r.trace(),
+            gate - colour_penalty,
+        ) {
             return None;
         }
         let s_pose = h_pose * pose_cov * h_pose.transpose();
@@ -128,6 +129,21 @@ impl Pair {
             bhattacharyya: b1 + b2 + if colour_penalty > 0.0 { 1.0 } else { 0.0 },
         })
     }
+}
+
+/// Whether an innovation's χ² must exceed `gate` whatever its covariance
+/// S = Hₚ Pₚ Hₚᵀ + Sₗ + R: χ² ≥ |ν|²/λmax(S), and λmax(S) ≤ tr S ≤
+/// ‖Hₚ‖²_F tr Pₚ + tr Sₗ + tr R. Most landmarks near a detection fail the
+/// gate on this bound alone, before S is formed and inverted. (The factor
+/// keeps rounding from turning away a pair the exact χ² would take.)
+pub fn beyond_gate(
+    innovation_norm2: f64,
+    h_pose_norm2: f64,
+    pose_cov_trace: f64,
+    local_trace: f64,
+    gate: f64,
+) -> bool {
+    innovation_norm2 > gate * (h_pose_norm2 * pose_cov_trace + local_trace) * (1.0 + 1e-9)
 }
 
 /// For each detection, its compatible pairs sorted by cost.
@@ -209,9 +225,10 @@ fn exchange(candidates: &Candidates, result: &mut [Option<usize>]) {
                 let (Some(a), Some(b)) = (result[i], result[j]) else {
                     continue;
                 };
-                let (Some(ia), Some(jb), Some(ib), Some(ja)) =
-                    (cost(i, a), cost(j, b), cost(i, b), cost(j, a))
-                else {
+                // Most pairs fail the first lookup: cones far apart.
+                let Some(ib) = cost(i, b) else { continue };
+                let Some(ja) = cost(j, a) else { continue };
+                let (Some(ia), Some(jb)) = (cost(i, a), cost(j, b)) else {
                     continue;
                 };
                 if ib + ja < ia + jb {

@@ -2,12 +2,12 @@
 //! innovation, its covariance through the pose and the landmark's EKF, and
 //! χ² against a gate, for the association methods to choose from.
 
-use super::association::{Candidates, Pair};
+use super::association::{Candidates, Pair, beyond_gate};
 use super::grid::Grid;
 use super::{GraphSlam, Mode};
 use crate::log::Detection;
 use cairn_core::SE2;
-use nalgebra::{Matrix2, Matrix3, SMatrix};
+use nalgebra::{Matrix2, Matrix3, SMatrix, Vector2};
 
 /// Farthest a detection is paired with a landmark, whatever the
 /// uncertainty (m): no gate reaches this far for a cone, and it bounds the
@@ -27,7 +27,6 @@ impl GraphSlam {
         gate: f64,
     ) -> (Candidates, Vec<f64>) {
         let rt = pose.rotation().transpose();
-        let drt = Matrix2::new(0.0, 1.0, -1.0, 0.0) * rt;
         let reach = self.config.max_range + 5.0;
         // Until the loop closes, the start area's landmarks are matched only
         // through place recognition ([`Self::awaits_loop_closure`]).
@@ -50,6 +49,7 @@ impl GraphSlam {
                 .collect(),
             INNOVATION,
         );
+        let pose_trace = pose_cov.trace();
         let mut near = Vec::new();
         cones
             .iter()
@@ -69,14 +69,28 @@ impl GraphSlam {
                         if innovation.norm() > INNOVATION {
                             return None;
                         }
-                        let mut h_pose = SMatrix::<f64, 2, 3>::zeros();
-                        h_pose.fixed_view_mut::<2, 2>(0, 0).copy_from(&(-rt));
-                        h_pose.fixed_view_mut::<2, 1>(0, 2).copy_from(&(drt * diff));
                         let penalty = if lm.sighting.contradicts(d.color) {
                             self.config.color_penalty
                         } else {
                             0.0
                         };
+                        // Pair::new's bound, before Hₚ and the rotated
+                        // landmark covariance are formed: ‖Hₚ‖²_F = 2 + |diff|²
+                        // (Hₚ = [−Rᵀ, J Rᵀ diff], both rotations) and the
+                        // trace is the same in any frame.
+                        let gate = self.config.new_landmark_gate - penalty;
+                        let local_trace = lm.cov.trace() + r.trace();
+                        let h_norm2 = 2.0 + diff.norm_squared();
+                        if beyond_gate(
+                            innovation.norm_squared(),
+                            h_norm2,
+                            pose_trace,
+                            local_trace,
+                            gate,
+                        ) {
+                            return None;
+                        }
+                        let h_pose = pose_jacobian(&rt, &diff);
                         Pair::new(
                             l,
                             innovation,
@@ -95,5 +109,57 @@ impl GraphSlam {
                 (pairs, nearest)
             })
             .collect()
+    }
+}
+
+/// Jacobian of a landmark's position in the car's frame, Rᵀ(m − t), with
+/// respect to the car's pose (x, y, θ), where `rt` is Rᵀ and `diff` is m − t.
+/// Both parts are rotations, so its squared Frobenius norm is 2 + |diff|².
+fn pose_jacobian(rt: &Matrix2<f64>, diff: &Vector2<f64>) -> SMatrix<f64, 2, 3> {
+    let drt = Matrix2::new(0.0, 1.0, -1.0, 0.0) * rt;
+    let mut h = SMatrix::<f64, 2, 3>::zeros();
+    h.fixed_view_mut::<2, 2>(0, 0).copy_from(&(-rt));
+    h.fixed_view_mut::<2, 1>(0, 2).copy_from(&(drt * diff));
+    h
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use cairn_core::SE2;
+    use rand::{Rng, SeedableRng, rngs::StdRng};
+
+    #[test]
+    fn the_pose_jacobian_matches_differences_and_its_norm_the_bound() {
+        let mut rng = StdRng::seed_from_u64(5);
+        let local = |pose: &SE2, m: &Vector2<f64>| pose.rotation().transpose() * (m - pose.t);
+        for _ in 0..200 {
+            let pose = SE2::new(
+                rng.random_range(-50.0..50.0),
+                rng.random_range(-50.0..50.0),
+                rng.random_range(-3.0..3.0),
+            );
+            let m = Vector2::new(rng.random_range(-60.0..60.0), rng.random_range(-60.0..60.0));
+            let h = pose_jacobian(&pose.rotation().transpose(), &(m - pose.t));
+            assert!(
+                (h.norm_squared() - (2.0 + (m - pose.t).norm_squared())).abs()
+                    < 1e-9 * h.norm_squared()
+            );
+            // Central differences in x, y and θ.
+            for k in 0..3 {
+                let eps = 1e-6;
+                let mut p = [pose.t.x, pose.t.y, pose.theta];
+                let mut q = p;
+                p[k] += eps;
+                q[k] -= eps;
+                let plus = local(&SE2::new(p[0], p[1], p[2]), &m);
+                let minus = local(&SE2::new(q[0], q[1], q[2]), &m);
+                let numeric = (plus - minus) / (2.0 * eps);
+                assert!(
+                    (numeric - h.column(k)).norm() < 1e-6 * (1.0 + m.norm()),
+                    "{k}"
+                );
+            }
+        }
     }
 }

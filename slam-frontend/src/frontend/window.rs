@@ -24,8 +24,9 @@ use faer::linalg::cholesky::llt::factor::{
     LltRegularization, cholesky_in_place, cholesky_in_place_scratch,
 };
 use faer::linalg::cholesky::llt::solve::solve_in_place_with_conj;
+use faer::linalg::matmul::triangular::{self, BlockStructure};
 use faer::reborrow::{Reborrow, ReborrowMut};
-use faer::{Conj, MatMut, Par};
+use faer::{Accum, Conj, MatMut, MatRef, Par};
 use nalgebra::{DMatrix, DVector, Matrix2, Matrix3, Matrix4, SMatrix, Vector2, Vector3};
 
 /// Poses optimised per scan (2.5 s at 10 Hz: about how long a cone stays in view).
@@ -93,6 +94,8 @@ pub(super) struct Window {
     bp: DVector<f64>,
     /// Work space of the factorisation.
     scratch: Option<MemBuffer>,
+    /// W = Hpl·Lₗ, column-major, for the Schur complement (see [`Window::reduce`]).
+    w: Vec<f64>,
     /// Sightings before this index are folded into the landmark priors.
     folded: usize,
     /// Prior on the yaw-rate bias from the windows before: mean (rad/s)
@@ -335,7 +338,7 @@ impl Window {
     /// back-substitutes. `None` if the reduced system is not positive definite.
     fn solve(&mut self, m: usize) -> Option<Step> {
         let inverses = self.landmark_inverses()?;
-        self.reduce(&inverses);
+        self.reduce(&inverses)?;
         let mut b = self.bp.clone();
         for group in self.couplings.chunk_by(|a, c| a.slot == c.slot) {
             let slot = group[0].slot;
@@ -407,21 +410,41 @@ impl Window {
             .collect()
     }
 
-    /// Hpp becomes the Schur complement S = Hpp − Σ Hpl Hll⁻¹ Hlp (lower
-    /// triangle).
-    fn reduce(&mut self, inverses: &[Matrix2<f64>]) {
-        let s = &mut self.hpp;
-        for group in self.couplings.chunk_by(|a, c| a.slot == c.slot) {
-            let inv = inverses[group[0].slot];
-            for a in group {
-                let left = a.block * inv;
-                // The Cholesky reads the lower triangle only.
-                for c in group.iter().filter(|c| c.pose <= a.pose) {
-                    let block = -(left * c.block.transpose());
-                    add_block(s, 3 * a.pose, 3 * c.pose, &block);
-                }
+    /// Hpp becomes the Schur complement S = Hpp − Hpl Hll⁻¹ Hlp (lower
+    /// triangle), as S −= W Wᵀ with W = Hpl·blockdiag(Lₗ) and Hll⁻¹ = Lₗ Lₗᵀ
+    /// per landmark: one dense product (a cone stays in view for most of
+    /// the window, so W is mostly full) instead of a 3×3 block product per
+    /// pair of sightings of each landmark. `None` when an Hll⁻¹ is not
+    /// positive definite.
+    fn reduce(&mut self, inverses: &[Matrix2<f64>]) -> Option<()> {
+        let factors: Vec<Matrix2<f64>> = inverses
+            .iter()
+            .map(|inv| inv.cholesky().map(|c| c.unpack()))
+            .collect::<Option<_>>()?;
+        let (rows, cols) = (self.hpp.nrows(), 2 * inverses.len());
+        self.w.clear();
+        self.w.resize(rows * cols, 0.0);
+        for c in &self.couplings {
+            let v = c.block * factors[c.slot];
+            for k in 0..2 {
+                let column = (2 * c.slot + k) * rows + 3 * c.pose;
+                self.w[column..column + 3].copy_from_slice(v.column(k).as_slice());
             }
         }
+        let w = MatRef::from_column_major_slice(&self.w, rows, cols);
+        let s = MatMut::from_column_major_slice_mut(self.hpp.as_mut_slice(), rows, rows);
+        triangular::matmul(
+            s,
+            BlockStructure::TriangularLower,
+            Accum::Add,
+            w,
+            BlockStructure::Rectangular,
+            w.transpose(),
+            BlockStructure::Rectangular,
+            -1.0,
+            Par::Seq,
+        );
+        Some(())
     }
 }
 
