@@ -1,6 +1,7 @@
-//! Joint compatibility branch and bound (Neira & Tardós 2001), with the
-//! joint innovation covariance factored block by block as pairs join the
-//! hypothesis.
+//! Joint compatibility branch and bound (Neira & Tardós 2001). Each
+//! hypothesis's joint distance is updated as a pair joins it: in constant
+//! time when only the pose correlates the pairs ([`ThroughPose`]), by one
+//! block row of the stacked covariance's factor otherwise ([`JointFactor`]).
 
 use super::{Candidates, Correlation, Pair};
 use nalgebra::{Matrix2, Matrix3, Vector2, Vector3};
