@@ -46,7 +46,17 @@ fn simulate_map_and_evaluate_a_random_track() {
         "--timing-out",
         s(&timing),
     ]);
-    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let summary = String::from_utf8_lossy(&o.stderr);
+    assert!(o.status.success(), "{summary}");
+    // The loop closed: its optimisation and the final one are reported.
+    for part in [
+        "1 loop closure(s)",
+        "p99",
+        "; loop closure ",
+        "; final optimisation ",
+    ] {
+        assert!(summary.contains(part), "{part:?} missing from {summary}");
+    }
     let plot = dir.join("plot.svg");
     let o = cairn(&[
         "fs-eval",

@@ -336,9 +336,17 @@ pub fn run_slam(a: SlamArgs) -> Result<(), String> {
             write_output(path, text.as_bytes())?;
         }
     }
-    let lat = latency_ms(&slam.timing().updates).unwrap_or_default();
+    let timing = slam.timing();
+    let lat = latency_ms(&timing.updates).unwrap_or_default();
+    let mut optimisations = String::new();
+    if let Some(longest) = timing.loop_closures.iter().copied().reduce(f64::max) {
+        optimisations += &format!("; loop closure {:.1} ms", 1e3 * longest);
+    }
+    if let Some(last) = timing.final_optimisation {
+        optimisations += &format!("; final optimisation {:.0} ms", 1e3 * last);
+    }
     eprintln!(
-        "{name}: {} scans, {} landmarks, {} loop closure(s), mode {:?}; update p50 {:.3} ms, p99 {:.3} ms",
+        "{name}: {} scans, {} landmarks, {} loop closure(s), mode {:?}; update p50 {:.3} ms, p99 {:.3} ms{optimisations}",
         log.scans(),
         slam.map().len(),
         slam.loop_closures(),
