@@ -332,16 +332,16 @@ impl Batch {
     /// closes it.
     fn choose<'a>(&self, list: &[&'a Observation], chosen: &mut Vec<&'a Observation>) {
         chosen.clear();
-        chosen.extend(list.iter().filter(|o| o.z.norm() <= self.near));
-        if chosen.len() < 2 {
-            chosen.clear();
-            chosen.extend_from_slice(list);
-        }
         let Some(&latest) = list.last() else { return };
-        let pool = std::mem::take(chosen);
-        let latest_is_far = pool.last().is_none_or(|o| !std::ptr::eq(*o, latest));
+        let near: Vec<&'a Observation> = list
+            .iter()
+            .copied()
+            .filter(|o| o.z.norm() <= self.near)
+            .collect();
+        let pool = if near.len() >= 2 { &near[..] } else { list };
+        let latest_is_far = !std::ptr::eq(pool[pool.len() - 1], latest);
         let room = self.sightings.saturating_sub(usize::from(latest_is_far));
-        chosen.extend(spread(&pool, room).copied());
+        chosen.extend(spread(pool, room).copied());
         if latest_is_far {
             chosen.push(latest);
         }
