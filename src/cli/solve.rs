@@ -84,7 +84,7 @@ pub struct SolveArgs {
     #[arg(long, value_enum, default_value = "marquardt")]
     damping: DampingName,
     /// Levenberg-Marquardt's τ, which sets the first λ (see --damping).
-    /// Default 1e-9 (marquardt), 1e-5 (levenberg, g2o's).
+    /// Default 1e-12 (marquardt), 1e-5 (levenberg, g2o's).
     #[arg(long)]
     tau: Option<f64>,
     /// Starting point.
