@@ -356,3 +356,44 @@ fn levenberg_marquardt_is_not_held_back_on_a_long_chain() {
     );
     assert!(s.iterations <= 8, "{} iterations", s.iterations);
 }
+
+#[test]
+fn levenberg_marquardt_climbs_out_of_a_poor_start() {
+    // input_INTEL_g2o's vertices are far off: Gauss-Newton's first step
+    // raises χ² 31× on its way to the minimum (215.830235). A monotone LM
+    // refuses that path and damps itself into χ² ≈ 1.3e4; non-monotonic
+    // steps (the default) follow it down.
+    let Some(path) = common::dataset("2d/input_INTEL_g2o.g2o") else {
+        return;
+    };
+    let solve = |nonmonotonic_steps| {
+        let (mut graph, _) = read_file(&path, &ReadOptions::default()).unwrap();
+        let config = SolverConfig {
+            algorithm: Algorithm::LevenbergMarquardt,
+            lm: LevenbergMarquardtConfig {
+                nonmonotonic_steps,
+                ..Default::default()
+            },
+            ..Default::default()
+        };
+        optimize(&mut graph, config).unwrap()
+    };
+    let s = solve(LevenbergMarquardtConfig::default().nonmonotonic_steps);
+    let minimum = 215.830235;
+    eprintln!(
+        "input_INTEL_g2o lm: χ² {} after {} it",
+        s.final_chi2, s.iterations
+    );
+    assert!(
+        ((s.final_chi2 - minimum) / minimum).abs() <= 1e-6,
+        "χ² {}",
+        s.final_chi2
+    );
+    assert!(s.termination.converged(), "{:?}", s.termination);
+    let monotone = solve(0);
+    assert!(
+        monotone.final_chi2 > 10.0 * minimum,
+        "{}",
+        monotone.final_chi2
+    );
+}

@@ -165,7 +165,8 @@ fn a_singular_hessian_ends_gn_and_is_damped_by_lm_and_dogleg() {
     let s = optimize(&mut g, config(Algorithm::LevenbergMarquardt)).unwrap();
     assert_ne!(s.termination, Termination::NotPositiveDefinite);
     assert!(s.final_chi2 < 0.05 * s.initial_chi2, "{}", s.final_chi2);
-    assert!(s.trace.windows(2).all(|w| w[1].chi2 <= w[0].chi2));
+    // Non-monotonic steps: the estimate kept is the lowest χ² met.
+    assert!(s.trace.iter().all(|t| s.final_chi2 <= t.chi2));
 }
 
 #[test]
@@ -249,10 +250,11 @@ fn an_optimizer_is_reused_and_refuses_a_changed_graph() {
 #[test]
 fn lm_updates_lambda_by_nielsen_rule_with_either_damping() {
     // λ shrinks by at most 3 after a good step, and never grows after one.
-    for lm in [
-        LevenbergMarquardtConfig::default(),
-        LevenbergMarquardtConfig::g2o(),
-    ] {
+    let monotone = LevenbergMarquardtConfig {
+        nonmonotonic_steps: 0,
+        ..Default::default()
+    };
+    for lm in [monotone, LevenbergMarquardtConfig::g2o()] {
         let mut g = noisy_loop(50, 7);
         let config = SolverConfig {
             lm,

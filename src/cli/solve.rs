@@ -87,6 +87,11 @@ pub struct SolveArgs {
     /// Default 1e-12 (marquardt), 1e-5 (levenberg, g2o's).
     #[arg(long)]
     tau: Option<f64>,
+    /// Levenberg-Marquardt's non-monotonic steps: how many steps in a row
+    /// may raise χ² (the estimate written is the lowest-χ² one met). 0 makes
+    /// every accepted step lower χ². Default 5 (marquardt), 0 (levenberg, as g2o).
+    #[arg(long)]
+    nonmonotonic_steps: Option<usize>,
     /// Starting point.
     #[arg(long, value_enum, default_value = "auto")]
     init: InitName,
@@ -335,7 +340,11 @@ fn solve(a: SolveArgs) -> Result<(), String> {
         },
         max_iterations: a.iterations,
         relative_decrease: a.relative_decrease,
-        lm: LevenbergMarquardtConfig { tau, ..lm },
+        lm: LevenbergMarquardtConfig {
+            tau,
+            nonmonotonic_steps: a.nonmonotonic_steps.unwrap_or(lm.nonmonotonic_steps),
+            ..lm
+        },
         linear: LinearSolverConfig {
             factorization: match a.factorization {
                 FactorizationName::Auto => Factorization::Auto,

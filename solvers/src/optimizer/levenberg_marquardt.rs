@@ -6,6 +6,88 @@ use crate::optimizer::Optimizer;
 use cairn_core::Graph;
 use std::time::Instant;
 
+/// Which steps LM may accept when non-monotonic steps are allowed (Conn,
+/// Gould and Toint's non-monotone trust region, as Ceres's
+/// `use_nonmonotonic_steps`): a step may raise χ² if, measured from a
+/// reference χ² of a few iterations back, the decrease so far is still a
+/// fair share of what the models predicted. Such steps let LM follow a
+/// Gauss-Newton path that climbs out of one valley on the way to a lower
+/// one, where a monotone LM damps itself into the nearer minimum.
+struct NonMonotone {
+    /// Non-monotonic steps in a row before the reference moves up to the
+    /// highest χ² met since the lowest (0: never, LM is monotone).
+    max_steps: usize,
+    /// The lowest χ² met so far.
+    minimum: f64,
+    /// χ² the ratio is measured from, and the predicted decreases since.
+    reference: f64,
+    predicted_since_reference: f64,
+    /// The highest χ² since the lowest one, and the predicted decreases
+    /// since it: the next reference.
+    candidate: f64,
+    predicted_since_candidate: f64,
+    /// Accepted steps since the lowest χ².
+    steps_above_minimum: usize,
+}
+
+impl NonMonotone {
+    /// The least ratio of actual to predicted decrease, measured from the
+    /// reference, for a step to count (Ceres's `min_relative_decrease`).
+    const MIN_RATIO: f64 = 1e-3;
+
+    fn new(chi2: f64, max_steps: usize) -> Self {
+        Self {
+            max_steps,
+            minimum: chi2,
+            reference: chi2,
+            predicted_since_reference: 0.0,
+            candidate: chi2,
+            predicted_since_candidate: 0.0,
+            steps_above_minimum: 0,
+        }
+    }
+
+    /// The gain ratio a step gets: the usual one (`chi2` → `trial`), or
+    /// the one measured from the reference if that one counts and is larger.
+    fn ratio(&self, chi2: f64, trial: f64, predicted: f64) -> f64 {
+        let rho = (chi2 - trial) / predicted;
+        if self.max_steps == 0 {
+            return rho;
+        }
+        let from_reference =
+            (self.reference - trial) / (self.predicted_since_reference + predicted);
+        if from_reference > Self::MIN_RATIO {
+            rho.max(from_reference)
+        } else {
+            rho
+        }
+    }
+
+    /// Records an accepted step to χ² `trial`; true if it is the lowest yet.
+    fn accept(&mut self, trial: f64, predicted: f64) -> bool {
+        self.predicted_since_reference += predicted;
+        self.predicted_since_candidate += predicted;
+        let lowest = trial < self.minimum;
+        if lowest {
+            self.minimum = trial;
+            self.steps_above_minimum = 0;
+            self.candidate = trial;
+            self.predicted_since_candidate = 0.0;
+        } else {
+            self.steps_above_minimum += 1;
+            if trial > self.candidate {
+                self.candidate = trial;
+                self.predicted_since_candidate = 0.0;
+            }
+        }
+        if self.steps_above_minimum == self.max_steps {
+            self.reference = self.candidate;
+            self.predicted_since_reference = self.predicted_since_candidate;
+        }
+        lowest
+    }
+}
+
 impl Optimizer {
     /// LM's damping D at the current H: 1 (Levenberg), or the diagonal of H
     /// kept within [1e-6, 1e32] (Marquardt, as Ceres).
@@ -22,7 +104,9 @@ impl Optimizer {
 
     /// Damped Gauss-Newton steps (H + λD) s = −g, λ from τ and Nielsen's
     /// update; each trial point is linearised once, into a second H that
-    /// becomes the current one if the step lowers χ².
+    /// becomes the current one if the step is accepted. Steps that raise χ²
+    /// may be accepted (see [`NonMonotone`]); the estimate returned is the
+    /// one with the lowest χ².
     pub(super) fn levenberg_marquardt(
         &mut self,
         graph: &mut Graph,
@@ -41,84 +125,138 @@ impl Optimizer {
             Damping::Levenberg => self.config.lm.tau * max_diagonal.max(f64::MIN_POSITIVE),
         };
         let mut ni = 2.0;
-        for iteration in 0..self.config.max_iterations {
-            let began = Instant::now();
-            let mut phases = PhaseTimes::default();
-            let gradient_max = max_abs(&self.gradient);
-            if gradient_max < self.config.gradient_tolerance || chi2 == 0.0 {
-                return Termination::GradientNorm;
-            }
-            self.set_damping();
-            self.save(graph);
-            let mut trials = 0;
-            let mut rejected_small_step = false;
-            let new_chi2 = loop {
-                trials += 1;
-                let solved = self.compute_step(lambda, &mut phases);
-                let mut trial_chi2 = f64::INFINITY;
-                if solved {
-                    let t = Instant::now();
-                    self.apply_step(graph);
-                    phases.update += since(t);
-                    // Linearised at once: if the step is accepted, this
-                    // becomes H and the gradient; if not, they still hold
-                    // the last accepted point's.
-                    trial_chi2 = self.linearize_trial(graph, &mut phases, true);
+        let mut steps = NonMonotone::new(chi2, self.config.lm.nonmonotonic_steps);
+        // The lowest-χ² estimate, saved when a step first leaves it.
+        let mut lowest = Vec::new();
+        let termination = 'run: {
+            for iteration in 0..self.config.max_iterations {
+                let began = Instant::now();
+                let mut phases = PhaseTimes::default();
+                let gradient_max = max_abs(&self.gradient);
+                if gradient_max < self.config.gradient_tolerance || chi2 == 0.0 {
+                    break 'run Termination::GradientNorm;
                 }
-                // Decrease of χ² the damped linear model predicts, sᵀ(λDs − g),
-                // with g2o's 1e-3 guard against a zero prediction.
-                let predicted: f64 = (self.step.iter().zip(&self.gradient))
-                    .zip(&self.damping)
-                    .map(|((s, g), d)| s * (lambda * d * s - g))
-                    .sum::<f64>()
-                    + 1e-3;
-                let rho = (chi2 - trial_chi2) / predicted;
-                if solved && rho > 0.0 && trial_chi2.is_finite() {
-                    let alpha = (1.0 - (2.0 * rho - 1.0).powi(3)).min(2.0 / 3.0);
-                    lambda *= alpha.max(1.0 / 3.0);
-                    ni = 2.0;
-                    break Some(trial_chi2);
-                }
-                lambda *= ni;
-                ni *= 2.0;
-                // A step too small to matter that fails is rounding at the
-                // optimum: raising λ would only shrink it further.
-                rejected_small_step = solved && self.step_is_small(graph);
-                if solved {
-                    let t = Instant::now();
-                    self.restore(graph);
-                    phases.update += since(t);
-                }
-                if rejected_small_step || trials >= self.config.lm.max_trials || !lambda.is_finite()
-                {
-                    break None;
-                }
-            };
-            let stats = IterationStats {
-                iteration,
-                chi2,
-                lambda: Some(lambda),
-                trials,
-                gradient_max,
-                phases,
-                ..Default::default()
-            };
-            let Some(new_chi2) = new_chi2 else {
-                record(stats, began, start, summary, on_iteration);
-                return if rejected_small_step {
-                    Termination::StepSize
-                } else {
-                    Termination::NoImprovement
+                self.set_damping();
+                self.save(graph);
+                let mut trials = 0;
+                let mut rejected_small_step = false;
+                let new_chi2 = loop {
+                    trials += 1;
+                    let solved = self.compute_step(lambda, &mut phases);
+                    let mut trial_chi2 = f64::INFINITY;
+                    if solved {
+                        let t = Instant::now();
+                        self.apply_step(graph);
+                        phases.update += since(t);
+                        // Linearised at once: if the step is accepted, this
+                        // becomes H and the gradient; if not, they still hold
+                        // the last accepted point's.
+                        trial_chi2 = self.linearize_trial(graph, &mut phases, true);
+                    }
+                    // Decrease of χ² the damped linear model predicts, sᵀ(λDs − g),
+                    // with g2o's 1e-3 guard against a zero prediction.
+                    let predicted: f64 = (self.step.iter().zip(&self.gradient))
+                        .zip(&self.damping)
+                        .map(|((s, g), d)| s * (lambda * d * s - g))
+                        .sum::<f64>()
+                        + 1e-3;
+                    let rho = steps.ratio(chi2, trial_chi2, predicted);
+                    if solved && rho > 0.0 && trial_chi2.is_finite() {
+                        let leaving_lowest = chi2 == steps.minimum;
+                        if !steps.accept(trial_chi2, predicted) && leaving_lowest {
+                            // `backup` holds the point the step left.
+                            lowest.clone_from(&self.backup);
+                        }
+                        let alpha = (1.0 - (2.0 * rho - 1.0).powi(3)).min(2.0 / 3.0);
+                        lambda *= alpha.max(1.0 / 3.0);
+                        ni = 2.0;
+                        break Some(trial_chi2);
+                    }
+                    lambda *= ni;
+                    ni *= 2.0;
+                    // A step too small to matter that fails is rounding at the
+                    // optimum: raising λ would only shrink it further.
+                    rejected_small_step = solved && self.step_is_small(graph);
+                    if solved {
+                        let t = Instant::now();
+                        self.restore(graph);
+                        phases.update += since(t);
+                    }
+                    if rejected_small_step
+                        || trials >= self.config.lm.max_trials
+                        || !lambda.is_finite()
+                    {
+                        break None;
+                    }
                 };
-            };
-            let clock = (began, start);
-            if let Some(end) =
-                self.end_iteration(graph, chi2, new_chi2, stats, clock, summary, on_iteration)
-            {
-                return end;
+                let stats = IterationStats {
+                    iteration,
+                    chi2,
+                    lambda: Some(lambda),
+                    trials,
+                    gradient_max,
+                    phases,
+                    ..Default::default()
+                };
+                let Some(new_chi2) = new_chi2 else {
+                    record(stats, began, start, summary, on_iteration);
+                    break 'run if rejected_small_step {
+                        Termination::StepSize
+                    } else {
+                        Termination::NoImprovement
+                    };
+                };
+                let clock = (began, start);
+                if let Some(end) =
+                    self.end_iteration(graph, chi2, new_chi2, stats, clock, summary, on_iteration)
+                {
+                    break 'run end;
+                }
+                chi2 = new_chi2;
             }
-            chi2 = new_chi2;
+            Termination::MaxIterations
+        };
+        debug_assert!(summary.final_chi2 <= steps.minimum || !lowest.is_empty());
+        if summary.final_chi2 > steps.minimum && !lowest.is_empty() {
+            graph.values_mut().params_mut().copy_from_slice(&lowest);
+            summary.final_chi2 = steps.minimum;
         }
-        Termination::MaxIterations
+        termination
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::NonMonotone;
+
+    #[test]
+    fn monotone_ratio_is_the_usual_gain_ratio() {
+        let steps = NonMonotone::new(100.0, 0);
+        assert_eq!(steps.ratio(100.0, 90.0, 20.0), 0.5);
+        assert_eq!(steps.ratio(100.0, 110.0, 20.0), -0.5);
+    }
+
+    #[test]
+    fn a_step_up_counts_against_the_reference_until_it_moves() {
+        let mut steps = NonMonotone::new(100.0, 2);
+        // 100 → 50, predicted 60: the lowest yet.
+        assert!(steps.accept(50.0, 60.0));
+        // 50 → 70 raises χ², but from the reference (100) it is 30 of the
+        // 60 + 20 predicted.
+        assert_eq!(steps.ratio(50.0, 70.0, 20.0), 30.0 / 80.0);
+        assert!(!steps.accept(70.0, 20.0));
+        assert_eq!(steps.reference, 100.0);
+        // A second step above the minimum (to 60) moves the reference to the
+        // highest χ² since the minimum, with what was predicted since it.
+        assert!(!steps.accept(60.0, 15.0));
+        assert_eq!(
+            (steps.reference, steps.predicted_since_reference),
+            (70.0, 15.0)
+        );
+        // A step up from the reference no longer counts; the usual ratio stays.
+        assert_eq!(steps.ratio(60.0, 75.0, 10.0), -1.5);
+        // A new lowest χ² restarts the count.
+        assert!(steps.accept(40.0, 25.0));
+        assert_eq!((steps.minimum, steps.steps_above_minimum), (40.0, 0));
     }
 }
