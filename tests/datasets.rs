@@ -368,15 +368,7 @@ fn levenberg_marquardt_climbs_out_of_a_poor_start() {
     };
     let solve = |nonmonotonic_steps| {
         let (mut graph, _) = read_file(&path, &ReadOptions::default()).unwrap();
-        let config = SolverConfig {
-            algorithm: Algorithm::LevenbergMarquardt,
-            lm: LevenbergMarquardtConfig {
-                nonmonotonic_steps,
-                ..Default::default()
-            },
-            ..Default::default()
-        };
-        optimize(&mut graph, config).unwrap()
+        optimize(&mut graph, common::lm_config(nonmonotonic_steps)).unwrap()
     };
     let s = solve(LevenbergMarquardtConfig::default().nonmonotonic_steps);
     let minimum = 215.830235;

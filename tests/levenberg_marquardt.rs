@@ -1,8 +1,10 @@
 //! Levenberg-Marquardt's non-monotonic steps on poor starts: generated
 //! Manhattan worlds whose odometry-chained start is far from the optimum.
 
+mod common;
+
 use cairn::generate::{ManhattanOptions, manhattan};
-use cairn::solvers::{Algorithm, LevenbergMarquardtConfig, SolverConfig, optimize};
+use cairn::solvers::optimize;
 
 fn solve(seed: u64, nonmonotonic_steps: usize) -> (cairn::solvers::Summary, f64) {
     let mut graph = manhattan(&ManhattanOptions {
@@ -12,15 +14,7 @@ fn solve(seed: u64, nonmonotonic_steps: usize) -> (cairn::solvers::Summary, f64)
         ..Default::default()
     })
     .unwrap();
-    let config = SolverConfig {
-        algorithm: Algorithm::LevenbergMarquardt,
-        lm: LevenbergMarquardtConfig {
-            nonmonotonic_steps,
-            ..Default::default()
-        },
-        ..Default::default()
-    };
-    let summary = optimize(&mut graph, config).unwrap();
+    let summary = optimize(&mut graph, common::lm_config(nonmonotonic_steps)).unwrap();
     (summary, graph.chi2())
 }
 

@@ -50,3 +50,16 @@ pub fn g2o_baseline(file: &str, algo: &str) -> Option<(f64, usize)> {
                 .flatten()
         })
 }
+
+/// Levenberg-Marquardt with the default options but `nonmonotonic_steps`.
+pub fn lm_config(nonmonotonic_steps: usize) -> cairn::solvers::SolverConfig {
+    use cairn::solvers::{Algorithm, LevenbergMarquardtConfig, SolverConfig};
+    SolverConfig {
+        algorithm: Algorithm::LevenbergMarquardt,
+        lm: LevenbergMarquardtConfig {
+            nonmonotonic_steps,
+            ..Default::default()
+        },
+        ..Default::default()
+    }
+}
