@@ -265,3 +265,65 @@ fn the_cone_spacing_of_a_random_track_can_be_chosen() {
         );
     }
 }
+
+#[test]
+fn a_detector_noisier_than_assumed_is_warned_about_and_can_be_described() {
+    let dir = temp_dir("noise");
+    let o = cairn(&[
+        "fs-sim",
+        "--seed",
+        "2",
+        "--laps",
+        "1.2",
+        "--preset",
+        "hard",
+        "-o",
+        s(&dir),
+    ]);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let log = dir.join("log.jsonl");
+    let run = |extra: &[&str]| {
+        let mut args = vec!["fs-slam", s(&log)];
+        args.extend(extra);
+        let o = cairn(&args);
+        (
+            o.status.success(),
+            String::from_utf8_lossy(&o.stderr).into_owned(),
+        )
+    };
+    // Read with the `standard` noise, the `hard` detector's far cones fall
+    // outside the gates and are rejected as spurious.
+    let (ok, stderr) = run(&[]);
+    assert!(ok && stderr.contains("rejected as spurious"), "{stderr}");
+    assert!(stderr.contains("--noise hard"), "{stderr}");
+    // Told the noise, by preset or by its parts, it keeps them.
+    let described = [
+        "--range-sigma",
+        "0.1",
+        "--range-sigma-relative",
+        "0.02",
+        "--bearing-sigma-deg",
+        "2",
+        "--detection-probability",
+        "0.8",
+        "--false-positives",
+        "1",
+    ];
+    for extra in [&["--noise", "hard"][..], &described[..]] {
+        let (ok, stderr) = run(extra);
+        assert!(ok && !stderr.contains("rejected"), "{extra:?}: {stderr}");
+    }
+    let scored = slam_and_score(&dir, &described);
+    let accuracy = scored["association_accuracy"].as_f64().unwrap();
+    assert!(accuracy > 0.97, "{accuracy}");
+    let bad = ["0", "-1", "nan", "inf"].map(|v| ("--bearing-sigma-deg", v));
+    for (name, value) in bad.into_iter().chain([
+        ("--detection-probability", "1.5"),
+        ("--false-positives", "-1"),
+    ]) {
+        let (ok, stderr) = run(&[&format!("{name}={value}")]);
+        assert!(!ok && stderr.contains(name), "{name}={value}: {stderr}");
+    }
+    let (ok, _) = run(&["--range-sigma-relative", "0"]);
+    assert!(ok, "a range σ that does not grow with range is allowed");
+}

@@ -105,9 +105,25 @@ pub struct SlamArgs {
     /// Skip and count malformed log lines instead of stopping at the first.
     #[arg(long)]
     skip_bad: bool,
-    /// Assumed detector noise preset (`standard` or `hard`).
+    /// Assumed detector noise preset (`standard` or `hard`); the options
+    /// below override its parts.
     #[arg(long, default_value = "standard")]
     noise: String,
+    /// Assumed range noise σ (m), the part that does not grow with range.
+    #[arg(long)]
+    range_sigma: Option<f64>,
+    /// Assumed range noise growing with range: σ_r = range_sigma + this × r.
+    #[arg(long)]
+    range_sigma_relative: Option<f64>,
+    /// Assumed bearing noise σ (degrees).
+    #[arg(long)]
+    bearing_sigma_deg: Option<f64>,
+    /// Assumed chance that the detector sees a cone in its view, per scan.
+    #[arg(long)]
+    detection_probability: Option<f64>,
+    /// Assumed false positives per scan.
+    #[arg(long)]
+    false_positives: Option<f64>,
     /// Estimator: graph (pose graph + per-landmark EKFs), ekf (EKF-SLAM),
     /// fastslam1 or fastslam2.
     #[arg(long, default_value = "graph")]
@@ -247,7 +263,8 @@ pub fn run_slam(a: SlamArgs) -> Result<(), String> {
     }
     let association = AssociationMethod::by_name(&a.association)
         .ok_or("--association must be ml, scnn, jcbb or tracking")?;
-    let preset = Preset::by_name(&a.noise).ok_or("--noise must be standard or hard")?;
+    let mut preset = Preset::by_name(&a.noise).ok_or("--noise must be standard or hard")?;
+    describe_detector(&mut preset, &a)?;
     let kind = EstimatorKind::by_name(&a.estimator)
         .ok_or("--estimator must be graph, ekf, fastslam1 or fastslam2")?;
     let mut config = FrontEndConfig::for_preset(&preset, association, kind);
@@ -293,7 +310,7 @@ pub fn run_slam(a: SlamArgs) -> Result<(), String> {
         ),
         None => None,
     };
-    let mut builder = EstimatorBuilder::new(kind, config);
+    let mut builder = EstimatorBuilder::new(kind, config.clone());
     builder.particles = a.particles;
     builder.seed = a.seed;
     builder.map = map.as_deref();
@@ -316,10 +333,18 @@ pub fn run_slam(a: SlamArgs) -> Result<(), String> {
     for warning in slam.warnings() {
         eprintln!("warning: {warning}");
     }
+    let associations = slam.associations();
+    let rejected = associations.iter().filter(|a| a.landmark.is_none()).count();
+    let scans = (log.records.iter())
+        .filter(|r| matches!(r, Record::Cones { .. } | Record::Points { .. }))
+        .count();
+    if let Some(warning) = rejection_warning(rejected, associations.len(), scans, &config) {
+        eprintln!("warning: {warning}");
+    }
     // Everything is computed before anything is written, so a failure leaves no partial output.
     let map = map_to_csv(&slam.map());
     let traj = files::trajectory_to_tum(&slam.trajectory());
-    let assoc = files::associations_to_csv(&slam.associations());
+    let assoc = files::associations_to_csv(&associations);
     let timing = serde_json::json!({
         "updates_s": slam.timing().updates,
         "loop_closures_s": slam.timing().loop_closures,
@@ -473,4 +498,95 @@ pub fn table(r: &Report) -> String {
     rows.iter()
         .map(|(k, v)| format!("{k:<width$}  {v}\n"))
         .collect()
+}
+
+/// Replaces the parts of the preset's detector model that `a` gives.
+fn describe_detector(preset: &mut Preset, a: &SlamArgs) -> Result<(), String> {
+    let sensor = &mut preset.sensor;
+    let positive = |v: f64| v.is_finite() && v > 0.0;
+    let non_negative = |v: f64| v.is_finite() && v >= 0.0;
+    let probability = |v: f64| v > 0.0 && v <= 1.0;
+    for (value, target, name, valid, rule) in [
+        (
+            a.range_sigma,
+            &mut sensor.range_sigma,
+            "--range-sigma",
+            &positive as &dyn Fn(f64) -> bool,
+            "finite and positive",
+        ),
+        (
+            a.range_sigma_relative,
+            &mut sensor.range_sigma_relative,
+            "--range-sigma-relative",
+            &non_negative,
+            "finite and ≥ 0",
+        ),
+        (
+            a.bearing_sigma_deg.map(f64::to_radians),
+            &mut sensor.bearing_sigma,
+            "--bearing-sigma-deg",
+            &positive,
+            "finite and positive",
+        ),
+        (
+            a.detection_probability,
+            &mut sensor.detection_probability,
+            "--detection-probability",
+            &probability,
+            "in (0, 1]",
+        ),
+        (
+            a.false_positives,
+            &mut sensor.false_positives,
+            "--false-positives",
+            &non_negative,
+            "finite and ≥ 0",
+        ),
+    ] {
+        if let Some(v) = value {
+            if !valid(v) {
+                return Err(format!("{name} must be {rule}"));
+            }
+            *target = v;
+        }
+    }
+    Ok(())
+}
+
+/// How far the fraction of detections rejected as spurious may exceed the
+/// false positives the detector is assumed to make before `fs-slam` warns.
+/// A detector as noisy as assumed loses its false positives and 1–2% more
+/// (far, ambiguous cones); a `hard` log read with the `standard` noise loses
+/// about half of all detections.
+const EXCESS_REJECTED_WARNING: f64 = 0.1;
+
+/// The warning for a run that rejected far more detections than the
+/// assumed detector's false positives (`config.false_positives` in each of
+/// `scans`): the usual sign that the detector is noisier than assumed, so
+/// that its detections fall outside the gates.
+fn rejection_warning(
+    rejected: usize,
+    detections: usize,
+    scans: usize,
+    config: &FrontEndConfig,
+) -> Option<String> {
+    let fraction = rejected as f64 / detections.max(1) as f64;
+    let false_positives =
+        (config.false_positives * scans as f64 / detections.max(1) as f64).min(1.0);
+    (detections >= 100 && fraction > false_positives + EXCESS_REJECTED_WARNING).then(|| {
+        format!(
+            "{:.0}% of the detections were rejected as spurious, where the detector is assumed \
+             to make {:.0}% false positives. If it is noisier than assumed (range σ {} m + {}·r, \
+             bearing σ {:.2}°, detection probability {}, {} false positives per scan), say so \
+             with --noise hard or --range-sigma, --range-sigma-relative, --bearing-sigma-deg, \
+             --detection-probability and --false-positives",
+            100.0 * fraction,
+            100.0 * false_positives,
+            config.range_sigma,
+            config.range_sigma_relative,
+            config.bearing_sigma.to_degrees(),
+            config.detection_probability,
+            config.false_positives,
+        )
+    })
 }
