@@ -103,6 +103,14 @@ fn a_bad_log_line_is_named_and_leaves_no_output() {
     assert!(map.exists());
 }
 
+/// Simulates 1.2 laps of random track 2 into `dir`, with `extra` options.
+fn simulate_short_run(dir: &Path, extra: &[&str]) {
+    let mut args = vec!["fs-sim", "--seed", "2", "--laps", "1.2", "-o", s(dir)];
+    args.extend(extra);
+    let o = cairn(&args);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+}
+
 /// Runs `fs-slam` with `extra` options on `dir`'s log and scores it.
 fn slam_and_score(dir: &Path, extra: &[&str]) -> serde_json::Value {
     let (map, traj, assoc) = (dir.join("m.csv"), dir.join("t.tum"), dir.join("a.csv"));
@@ -178,17 +186,7 @@ fn every_estimator_and_point_clouds_run_from_the_command_line() {
     }
 
     let points = temp_dir("points");
-    let o = cairn(&[
-        "fs-sim",
-        "--seed",
-        "2",
-        "--laps",
-        "1.2",
-        "--points",
-        "-o",
-        s(&points),
-    ]);
-    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    simulate_short_run(&points, &["--points"]);
     let log = std::fs::read_to_string(points.join("log.jsonl")).unwrap();
     assert!(log.contains("\"points\"") && !log.contains("\"cones\""));
     let report = slam_and_score(&points, &["--estimator", "ekf"]);
@@ -269,18 +267,7 @@ fn the_cone_spacing_of_a_random_track_can_be_chosen() {
 #[test]
 fn a_detector_noisier_than_assumed_is_warned_about_and_can_be_described() {
     let dir = temp_dir("noise");
-    let o = cairn(&[
-        "fs-sim",
-        "--seed",
-        "2",
-        "--laps",
-        "1.2",
-        "--preset",
-        "hard",
-        "-o",
-        s(&dir),
-    ]);
-    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    simulate_short_run(&dir, &["--preset", "hard"]);
     let log = dir.join("log.jsonl");
     let run = |extra: &[&str]| {
         let mut args = vec!["fs-slam", s(&log)];
