@@ -138,6 +138,7 @@ impl Optimizer {
                 }
                 self.set_damping();
                 self.save(graph);
+                let minimum_before = steps.minimum;
                 let mut trials = 0;
                 let mut rejected_small_step = false;
                 let new_chi2 = loop {
@@ -207,9 +208,18 @@ impl Optimizer {
                     };
                 };
                 let clock = (began, start);
-                if let Some(end) =
-                    self.end_iteration(graph, chi2, new_chi2, stats, clock, summary, on_iteration)
-                {
+                // Converged when the lowest χ² improves by less than the
+                // tolerance; a step that stays above it (a non-monotonic
+                // one) shows no decrease and never ends the run.
+                if let Some(end) = self.end_iteration(
+                    graph,
+                    minimum_before,
+                    new_chi2,
+                    stats,
+                    clock,
+                    summary,
+                    on_iteration,
+                ) {
                     break 'run end;
                 }
                 chi2 = new_chi2;
