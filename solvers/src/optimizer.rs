@@ -439,11 +439,12 @@ impl Optimizer {
         Termination::MaxIterations
     }
 
-    /// Ends an iteration whose step was taken, χ² going from `old_chi2` (or,
-    /// for LM, the lowest χ² before the step) to `new_chi2`: makes the new point's H and gradient current unless this
-    /// was the last iteration, records `stats` (timed from `clock`: the
-    /// iteration's and the optimisation's start), and says whether to stop
-    /// (the step was too small, or χ² fell by less than the tolerance).
+    /// Ends an iteration whose step was taken, χ² going from `old_chi2` (for
+    /// LM, the lowest χ² before the step) to `new_chi2`: makes the new
+    /// point's H and gradient current unless this was the last iteration,
+    /// records `stats` (timed from `clock`: the iteration's and the
+    /// optimisation's start), and says whether to stop (the step was too
+    /// small, or χ² fell by less than the tolerance).
     #[allow(clippy::too_many_arguments)]
     pub(super) fn end_iteration(
         &mut self,
