@@ -341,9 +341,8 @@ fn levenberg_marquardt_is_not_held_back_on_a_long_chain() {
     };
     let (mut graph, _) = read_file(&path, &ReadOptions::default()).unwrap();
     let config = SolverConfig {
-        algorithm: Algorithm::LevenbergMarquardt,
         relative_decrease: 1e-5,
-        ..Default::default()
+        ..common::lm_config(LevenbergMarquardtConfig::default().nonmonotonic_steps)
     };
     let s = optimize(&mut graph, config).unwrap();
     let minimum = 172.815579;
