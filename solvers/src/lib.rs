@@ -32,6 +32,7 @@ pub mod initialization;
 pub mod linear;
 pub mod marginals;
 pub mod optimizer;
+mod selected_inverse;
 mod simplicial;
 pub mod structure;
 

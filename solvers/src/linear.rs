@@ -4,6 +4,7 @@
 //! block-aware code (the `simplicial` module).
 
 use crate::SolveError;
+use crate::selected_inverse::{LowerFactor, SelectedInverse, Supernodes};
 use crate::simplicial::{SimplicialCholesky, SimplicialSymbolic};
 use faer::dyn_stack::{MemBuffer, MemStack, StackReq};
 use faer::linalg::cholesky::llt::factor::{LltError, LltRegularization};
@@ -275,6 +276,35 @@ impl FaerCholesky {
     }
 }
 
+impl FaerCholesky {
+    /// H⁻¹ on the pattern of the factor.
+    fn selected_inverse(&self) -> SelectedInverse {
+        let position = self.symbolic.perm().map(|p| p.arrays().1.to_vec());
+        match self.symbolic.raw() {
+            SymbolicCholeskyRaw::Supernodal(s) => {
+                let supernodes = Supernodes {
+                    begin: s.supernode_begin().to_vec(),
+                    end: s.supernode_end().to_vec(),
+                    val_ptr: s.col_ptr_for_val().to_vec(),
+                    row_ptr: s.col_ptr_for_row_idx().to_vec(),
+                    row_idx: s.row_idx().to_vec(),
+                    values: self.values.clone(),
+                };
+                SelectedInverse::from_supernodes(supernodes, position)
+            }
+            SymbolicCholeskyRaw::Simplicial(s) => {
+                let mut columns = LowerFactor {
+                    col_ptr: s.col_ptr().to_vec(),
+                    row_idx: s.row_idx().to_vec(),
+                    values: self.values.clone(),
+                };
+                columns.sort_columns();
+                SelectedInverse::from_columns(columns, position)
+            }
+        }
+    }
+}
+
 /// Solves L Lᵀ x = b in place for faer's supernodal factor L (unpermuted).
 /// faer's own solve multiplies each supernode through its general dense
 /// kernels, which on the small supernodes of pose graphs (3 to a few dozen
@@ -454,6 +484,18 @@ impl SparseCholesky {
         }
         self.factored = true;
         Ok(())
+    }
+
+    /// H⁻¹ on the pattern of L, from the last successful factorisation
+    /// (`None` if there is none).
+    pub(crate) fn selected_inverse(&self) -> Option<SelectedInverse> {
+        if !self.factored {
+            return None;
+        }
+        Some(match &self.factor {
+            Factor::Simplicial(s) => SelectedInverse::from_columns(s.lower_factor(), None),
+            Factor::Faer(f) => f.selected_inverse(),
+        })
     }
 
     /// Solves H x = rhs in place with the last successful factorisation.

@@ -237,6 +237,11 @@ impl Optimizer {
             .map_err(|e| SolveError::NotPositiveDefinite(e.pivot))
     }
 
+    /// H⁻¹ on the pattern of the last factorisation's L.
+    pub(crate) fn selected_inverse(&self) -> Option<crate::selected_inverse::SelectedInverse> {
+        self.cholesky.as_ref()?.selected_inverse()
+    }
+
     /// Solves H x = rhs with the last factorisation.
     pub(crate) fn solve_factorized(&mut self, rhs: &mut [f64]) {
         if let Some(c) = self.cholesky.as_mut() {

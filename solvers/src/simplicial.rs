@@ -11,6 +11,7 @@
 
 use crate::SolveError;
 use crate::linear::NotPositiveDefinite;
+use crate::selected_inverse::LowerFactor;
 use crate::structure::group_by_key;
 use faer::sparse::{SparseColMatRef, SymbolicSparseColMatRef};
 
@@ -338,6 +339,16 @@ impl SimplicialCholesky {
             self.inverse_diagonal[k] = diagonal.recip();
         }
         Ok(())
+    }
+
+    /// The factor's columns, for selected inversion (already each column's
+    /// diagonal first, then its rows ascending).
+    pub(crate) fn lower_factor(&self) -> LowerFactor {
+        LowerFactor {
+            col_ptr: self.symbolic.col_ptr.clone(),
+            row_idx: self.row_idx.iter().map(|&r| r as usize).collect(),
+            values: self.values.clone(),
+        }
     }
 
     /// Solves LLᵀ x = rhs in place with the last factorisation.

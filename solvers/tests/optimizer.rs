@@ -409,8 +409,6 @@ fn marginals_equal_blocks_of_the_dense_inverse() {
     .unwrap();
     let mut opt = Optimizer::new(&g, SolverConfig::default()).unwrap();
     opt.optimize(&mut g).unwrap();
-    let ids = [3, 50, 11];
-    let marginals = opt.marginals(&g, &ids).unwrap();
 
     // Dense H from the analytic Jacobians: H = Σ JᵀΩJ over the free vertices.
     let free: Vec<i64> = g.vertices().filter(|v| v.id != 0).map(|v| v.id).collect();
@@ -465,13 +463,33 @@ fn marginals_equal_blocks_of_the_dense_inverse() {
         }
     }
     let inverse = h.try_inverse().unwrap();
-    for (id, m) in ids.iter().zip(&marginals) {
-        let (o, d) = (offset(*id).unwrap(), m.nrows());
-        let expected = inverse.view((o, o), (d, d));
-        assert!(
-            (m - expected).amax() <= 1e-9 * expected.amax(),
-            "vertex {id}:\n{m}\n{expected}"
-        );
+    // A few vertices (solved for), and all of them (selected inversion), on
+    // every kind of factor.
+    for ids in [vec![3, 50, 11], free.clone()] {
+        for ordering in [
+            cairn_solvers::Ordering::BlockAmd,
+            cairn_solvers::Ordering::Amd,
+            cairn_solvers::Ordering::Schur,
+        ] {
+            for factorization in [
+                cairn_solvers::Factorization::Simplicial,
+                cairn_solvers::Factorization::Supernodal,
+            ] {
+                let mut config = SolverConfig::default();
+                config.linear.ordering = ordering;
+                config.linear.factorization = factorization;
+                let mut opt = Optimizer::new(&g, config).unwrap();
+                let marginals = opt.marginals(&g, &ids).unwrap();
+                for (id, m) in ids.iter().zip(&marginals) {
+                    let (o, d) = (offset(*id).unwrap(), m.nrows());
+                    let expected = inverse.view((o, o), (d, d));
+                    assert!(
+                        (m - expected).amax() <= 1e-9 * expected.amax(),
+                        "vertex {id}, {ordering:?} {factorization:?}:\n{m}\n{expected}"
+                    );
+                }
+            }
+        }
     }
     assert_eq!(
         opt.marginals(&g, &[0]).unwrap_err(),
