@@ -21,6 +21,15 @@ pub struct Report {
     pub map_rmse: f64,
     /// The same after the best rigid alignment of the map to the truth (m).
     pub map_rmse_aligned: f64,
+    /// The map RMSE the map's own covariances predict: √(mean trace) over
+    /// the matched landmarks; `None` when a landmark has no covariance.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub map_rmse_predicted: Option<f64>,
+    /// Mean of eᵀΣ⁻¹e over the matched landmarks (e: error to the true
+    /// cone, Σ: the map's covariance): 2 when the covariances are right,
+    /// more when they are over-confident.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub map_nees: Option<f64>,
     /// Per colour (of the true cone): (colour, RMSE, matched landmarks).
     pub map_rmse_by_color: Vec<(String, f64, usize)>,
     /// Landmarks with no true cone within [`MATCH_RADIUS`].
@@ -61,6 +70,8 @@ pub fn evaluate(
     };
     // Map: nearest true cone for every landmark.
     let mut pairs = Vec::new();
+    // (trace Σ, eᵀΣ⁻¹e) of each matched landmark, while all have a Σ.
+    let mut consistency = Some(Vec::new());
     let mut by_color: HashMap<Color, (f64, usize)> = HashMap::new();
     for lm in map {
         let nearest = truth_map
@@ -71,6 +82,15 @@ pub fn evaluate(
         match nearest {
             Some((i, d)) if d <= MATCH_RADIUS => {
                 pairs.push((lm.position, truth_map[i].position));
+                let error = lm.position - truth_map[i].position;
+                let inverse = lm
+                    .covariance
+                    .try_inverse()
+                    .filter(|_| lm.covariance.trace() > 0.0);
+                consistency = consistency.and_then(|mut c| {
+                    c.push((lm.covariance.trace(), error.dot(&(inverse? * error))));
+                    Some(c)
+                });
                 let e = by_color.entry(truth_map[i].color).or_default();
                 e.0 += d * d;
                 e.1 += 1;
@@ -79,6 +99,11 @@ pub fn evaluate(
         }
     }
     report.map_rmse = rms(pairs.iter().map(|(a, b)| (a - b).norm()));
+    if let Some(c) = consistency.filter(|c| !c.is_empty()) {
+        let n = c.len() as f64;
+        report.map_rmse_predicted = Some((c.iter().map(|x| x.0).sum::<f64>() / n).sqrt());
+        report.map_nees = Some(c.iter().map(|x| x.1).sum::<f64>() / n);
+    }
     let (est, truth): (Vec<_>, Vec<_>) = pairs.iter().copied().unzip();
     report.map_rmse_aligned = aligned_rms(&est, &truth);
     let mut colors: Vec<_> = by_color.into_iter().collect();

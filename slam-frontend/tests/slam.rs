@@ -518,3 +518,69 @@ fn clutter_objects_beside_the_track_leave_the_map_at_the_end() {
         "association accuracy {accuracy:?}"
     );
 }
+
+#[test]
+fn the_map_covariances_are_the_final_graphs_marginals_and_fit_its_errors() {
+    // The EKF's covariances are relative to the poses that saw each cone:
+    // on epfl_fsds_competition_1 they put the map's errors at NEES ≈ 250.
+    // The marginals carry the heading's drift since the start.
+    let (track, course) = random_track(1, &TrackRules::default());
+    let (mut nees, mut error2, mut predicted2) = (0.0, 0.0, 0.0);
+    let seeds = 1..=4;
+    for seed in seeds.clone() {
+        let sim = simulate_seed(&track, &course, seed);
+        let (slam, report) = run_and_score(&sim, FrontEndConfig::default());
+        assert!(slam.loop_closures() >= 1, "seed {seed}");
+        let (Some(n), Some(p)) = (report.map_nees, report.map_rmse_predicted) else {
+            panic!("seed {seed}: no covariances: {report:?}");
+        };
+        println!("seed {seed}: NEES {n:.2}, predicted {p:.3} m, {report:?}");
+        nees += n;
+        error2 += report.map_rmse.powi(2);
+        predicted2 += p * p;
+        // Far from the start (where the first pose is given) a cone is
+        // less certain than near it.
+        let trace = |near: bool| {
+            let traces: Vec<f64> = slam
+                .map()
+                .iter()
+                .filter(|c| (c.position.norm() < 20.0) == near)
+                .map(|c| c.covariance.trace())
+                .collect();
+            traces.iter().sum::<f64>() / traces.len() as f64
+        };
+        assert!(trace(false) > 2.0 * trace(true), "seed {seed}");
+    }
+    let runs = seeds.count() as f64;
+    let nees = nees / runs;
+    let ratio = (error2 / predicted2).sqrt();
+    assert!((0.5..8.0).contains(&nees), "mean NEES {nees}");
+    assert!((0.5..2.0).contains(&ratio), "RMSE / predicted {ratio}");
+}
+
+#[test]
+fn the_map_scores_its_covariances_when_every_landmark_has_one() {
+    use cairn_slam::color::Color;
+    use cairn_slam::eval::evaluate;
+    use cairn_slam::track::Cone;
+    use nalgebra::Matrix2;
+    let truth = vec![
+        Cone::new(0.0, 0.0, Color::Blue),
+        Cone::new(10.0, 0.0, Color::Yellow),
+    ];
+    // Errors of 0.1 m along x and 0.2 m along y, with σ 0.1 m in both.
+    let mut map = vec![
+        Cone::new(0.1, 0.0, Color::Blue),
+        Cone::new(10.0, 0.2, Color::Yellow),
+    ];
+    for c in &mut map {
+        c.covariance = Matrix2::identity() * 0.01;
+    }
+    let r = evaluate(&truth, &map, &[], &[], &[], &[]);
+    assert!((r.map_rmse_predicted.unwrap_or(0.0) - 0.02_f64.sqrt()).abs() < 1e-12);
+    assert!((r.map_nees.unwrap_or(0.0) - (1.0 + 4.0) / 2.0).abs() < 1e-12);
+    // Ground truth and maps without covariances are not scored.
+    map[1].covariance = Matrix2::zeros();
+    let r = evaluate(&truth, &map, &[], &[], &[], &[]);
+    assert_eq!((r.map_rmse_predicted, r.map_nees), (None, None));
+}

@@ -465,6 +465,10 @@ pub fn table(r: &Report) -> String {
             format!("{:.3}", r.map_rmse_aligned),
         ),
     ];
+    if let (Some(predicted), Some(nees)) = (r.map_rmse_predicted, r.map_nees) {
+        rows.push(("map RMSE, predicted (m)".into(), format!("{predicted:.3}")));
+        rows.push(("map NEES (2 if consistent)".into(), format!("{nees:.2}")));
+    }
     for (c, e, n) in &r.map_rmse_by_color {
         rows.push((format!("  {c} ({n})"), format!("{e:.3}")));
     }

@@ -228,11 +228,13 @@ impl GraphSlam {
         let scans = std::mem::take(&mut self.scan_log);
         let gate = self.config.gate.max(FINAL_GATE);
         self.match_again(&scans, gate);
-        let mut result = self.optimise(optimise::Batch::last());
+        // The last optimisation gives the map its covariances.
+        let hindsight = self.matches_in_hindsight();
+        let mut result = self.optimise(optimise::Batch::last(!hindsight));
         self.drop_clutter();
-        if self.matches_in_hindsight() && result.is_ok() {
+        if hindsight && result.is_ok() {
             self.associate_in_hindsight(&scans, gate);
-            result = self.optimise(optimise::Batch::last());
+            result = self.optimise(optimise::Batch::last(true));
             // Judged again on the colours of the detections as now matched.
             self.drop_clutter();
         }
@@ -479,7 +481,10 @@ impl GraphSlam {
             .collect()
     }
 
-    /// The map: confirmed landmarks, with their EKF covariances.
+    /// The map: confirmed landmarks, with their covariances: each
+    /// landmark's EKF's (relative to the poses that saw it) during the run,
+    /// the marginals of the final optimisation (in the world frame, the
+    /// start pose given) once [`Self::finish`] has run.
     pub fn map(&self) -> Vec<Cone> {
         self.map_rows()
             .into_iter()

