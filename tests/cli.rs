@@ -202,6 +202,31 @@ fn fix_holds_vertices_and_cubicle_needs_repair() {
     assert!(m[0][0].as_f64().unwrap() > 0.0 && m[0][1] == m[1][0]);
     let o = cairn(&["solve", s(&input), "--marginals", "0"]);
     assert!(stderr(&o).contains("vertex 0 is fixed"), "{}", stderr(&o));
+    // Every vertex but the gauge, by selected inversion: the same blocks.
+    let o = cairn(&["solve", s(&input), "--marginals", "all", "-q", "--json"]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let all: serde_json::Value = serde_json::from_slice(&o.stdout).unwrap();
+    let blocks = all["marginals"].as_array().unwrap();
+    assert_eq!(Some(blocks.len() as u64 + 1), all["vertices"].as_u64());
+    let same = blocks.iter().find(|b| b["vertex"] == 150).unwrap();
+    for (r, row) in m.as_array().unwrap().iter().enumerate() {
+        for (c, value) in row.as_array().unwrap().iter().enumerate() {
+            let (a, b) = (
+                value.as_f64().unwrap(),
+                same["covariance"][r][c].as_f64().unwrap(),
+            );
+            assert!(
+                (a - b).abs() <= 1e-9 * a.abs().max(1e-12),
+                "{r},{c}: {a} {b}"
+            );
+        }
+    }
+    let o = cairn(&["solve", s(&input), "--marginals", "5,x"]);
+    assert!(
+        stderr(&o).contains("'x' is neither a vertex id nor all"),
+        "{}",
+        stderr(&o)
+    );
 
     let Some(cubicle) = common::dataset("3d/cubicle.g2o") else {
         return;

@@ -129,10 +129,11 @@ pub struct SolveArgs {
     /// same for any number.
     #[arg(long, default_value_t = 0)]
     threads: usize,
-    /// Print the marginal covariances of these vertex ids (comma-separated) at
-    /// the optimum, in each vertex's tangent coordinates (SE2: x, y, θ).
-    #[arg(long, value_delimiter = ',')]
-    marginals: Vec<i64>,
+    /// Print the marginal covariances of these vertex ids (comma-separated),
+    /// or of every vertex not held fixed with `all`, at the optimum, in each
+    /// vertex's tangent coordinates (SE2: x, y, θ).
+    #[arg(long, value_delimiter = ',', value_name = "IDS|all")]
+    marginals: Vec<String>,
     /// Append a one-line CSV summary of the run to this file (header if new).
     #[arg(long)]
     summary: Option<PathBuf>,
@@ -382,16 +383,17 @@ fn solve(a: SolveArgs) -> Result<(), String> {
     .map_err(|e| format!("{name}: {e}"))?;
     let solve = t.elapsed().as_secs_f64();
 
-    let marginals = if a.marginals.is_empty() {
+    let marginal_ids = marginal_ids(&a.marginals, &graph, &summary.gauge)?;
+    let marginals = if marginal_ids.is_empty() {
         Vec::new()
     } else {
         let mut optimizer = Optimizer::new(&graph, config).map_err(|e| format!("{name}: {e}"))?;
         optimizer
-            .marginals(&graph, &a.marginals)
+            .marginals(&graph, &marginal_ids)
             .map_err(|e| format!("--marginals: {e}"))?
     };
     if !a.quiet {
-        for (id, m) in a.marginals.iter().zip(&marginals) {
+        for (id, m) in marginal_ids.iter().zip(&marginals) {
             eprint!("marginal covariance of vertex {id}:{m}");
         }
     }
@@ -445,7 +447,7 @@ fn solve(a: SolveArgs) -> Result<(), String> {
             "load": report_json(&report),
             "summary": summary,
             "init": start_name(used),
-            "marginals": a.marginals.iter().zip(&marginals).map(|(id, m)| serde_json::json!({
+            "marginals": marginal_ids.iter().zip(&marginals).map(|(id, m)| serde_json::json!({
                 "vertex": id,
                 "covariance": m.row_iter().map(|r| r.iter().copied().collect::<Vec<f64>>()).collect::<Vec<_>>(),
             })).collect::<Vec<_>>(),
@@ -456,4 +458,27 @@ fn solve(a: SolveArgs) -> Result<(), String> {
         println!("{value}");
     }
     Ok(())
+}
+
+/// The vertex ids `--marginals` names: its ids, or with `all` every vertex
+/// neither fixed nor taken as the gauge.
+fn marginal_ids(
+    args: &[String],
+    graph: &cairn_core::Graph,
+    gauge: &[i64],
+) -> Result<Vec<i64>, String> {
+    if args.iter().any(|a| a == "all") {
+        return Ok(graph
+            .vertices()
+            .filter(|v| !v.fixed && !gauge.contains(&v.id))
+            .map(|v| v.id)
+            .collect());
+    }
+    args.iter()
+        .map(|a| {
+            a.trim()
+                .parse()
+                .map_err(|_| format!("--marginals: '{a}' is neither a vertex id nor all"))
+        })
+        .collect()
 }
