@@ -136,21 +136,21 @@ pub fn run(a: ReportArgs) -> Result<(), String> {
          trace) over a map is the RMSE an estimator that used every measurement optimally would \
          reach under the front end's noise model. With the speed scale weighed as if known \
          (odometry speed σ 0.5% instead of 3%) it moved by 1%: the bend is the gyro's and the \
-         bearings'. Over 10–20 seeds (maximum likelihood, one run at a time): \
-         epfl_fsds_competition_1 predicted 0.106 m, measured 0.141 m; epfl_track_3 0.109 and \
-         0.102 m; amz_fssim_FSG 0.069 and 0.081 m; eufs_comp_2021 0.024 and 0.023 m; and in \
-         the tables below (5 seeds) random-0 0.169 and 0.18 m. So 0.10 m unaligned is beyond \
-         the information of the three tracks that miss it, and the runs sit within 1.0–1.3× of \
-         what it allows. NEES (mean eᵀΣ⁻¹e, 2 when right) was 2.1 on eufs_comp_2021 and 2.6–3.2 on the \
-         large tracks, against about 250 for the EKF's covariances the map file held before \
-         (relative to the poses that saw each cone). What bends the map is mostly the gyro's \
-         white noise: on epfl_fsds_competition_1 (10 seeds, one noise source taken out of the \
-         simulator at a time, the front end unchanged) the map RMSE of 0.150 m fell to 0.086 m \
-         without it, 0.127 m without the bearing noise and 0.130 m without the range noise, and \
-         stayed at 0.150 m without the gyro bias or the speed's noise and bias. That is also \
-         where the covariances are a little over-confident: with the gyro's noise at a fifth \
-         (the front end told) NEES was 1.96, at three times 2.95; weighing the integrated \
-         heading by 0.25–16 times its variance moved the map RMSE by less than 0.02 m.\n\
+         bearings'. Over 50 seeds (maximum likelihood, run alone): epfl_fsds_competition_1 \
+         predicted 0.106 m, measured 0.120 m, NEES 2.4; epfl_track_3 0.109 and 0.113 m, NEES \
+         2.4; in the tables below (5 seeds) random-0 0.169 and 0.18 m. So 0.10 m unaligned is \
+         beyond the information of the three tracks that miss it, the runs sit within 1.05–1.15× \
+         of what it allows, and the covariances are about right (NEES 2 when exact; about 250 \
+         for the EKF's covariances the map file held before, relative to the poses that saw \
+         each cone). Samples of 10 seeds are not enough to judge this: the error is mostly one \
+         rotation per run, and seeds 0–9 alone gave 0.150 m and NEES 3.2 on \
+         epfl_fsds_competition_1. What bends the map is mostly the gyro's white noise: on the \
+         same 50 seeds, one noise source taken out of the simulator at a time (the front end \
+         unchanged), the map RMSE fell to 0.074 m without it (epfl_track_3: 0.113 → 0.065 m), \
+         to 0.096 m without the bearing noise and 0.098 m without the range noise, and stayed \
+         at 0.120 m without the gyro bias or the speed's noise and bias. Weighing the \
+         integrated heading by 0.25–16 times its variance moved the map RMSE by less than \
+         0.02 m (10 seeds).\n\
          - **The loop-closure optimisation uses at most 8 sightings of each landmark**: \
          those within 8 m when it has two, spread over its history, and always its latest, the \
          one that closes the loop. The final optimisation takes all of them (up to ~300 per \
