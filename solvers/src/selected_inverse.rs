@@ -304,9 +304,10 @@ mod tests {
     use nalgebra::DMatrix;
     use rand::{Rng, SeedableRng, rngs::StdRng};
 
-    /// A random sparse SPD matrix of dimension `n` and its dense Cholesky
-    /// factor as a [`LowerFactor`] (every fill entry kept, zeros dropped).
-    fn random_spd(rng: &mut StdRng, n: usize) -> (DMatrix<f64>, LowerFactor) {
+    /// A random sparse SPD matrix of dimension `n`, its dense Cholesky
+    /// factor, and that as a [`LowerFactor`] (every fill entry kept, zeros
+    /// dropped).
+    fn random_spd(rng: &mut StdRng, n: usize) -> (DMatrix<f64>, DMatrix<f64>, LowerFactor) {
         let mut h = DMatrix::<f64>::zeros(n, n);
         for i in 0..n {
             h[(i, i)] = n as f64;
@@ -337,7 +338,7 @@ mod tests {
             }
             factor.col_ptr.push(factor.row_idx.len());
         }
-        (h, factor)
+        (h, l, factor)
     }
 
     #[test]
@@ -345,7 +346,7 @@ mod tests {
         let mut rng = StdRng::seed_from_u64(11);
         for _ in 0..30 {
             let n = rng.random_range(1..40);
-            let (h, factor) = random_spd(&mut rng, n);
+            let (h, _, factor) = random_spd(&mut rng, n);
             let pattern: Vec<(usize, usize)> = (0..n)
                 .flat_map(|j| {
                     let f = &factor;
@@ -370,7 +371,7 @@ mod tests {
     fn a_permuted_factor_is_read_in_the_matrix_order() {
         let mut rng = StdRng::seed_from_u64(5);
         let n = 12;
-        let (h, factor) = random_spd(&mut rng, n);
+        let (h, _, factor) = random_spd(&mut rng, n);
         // H' = P H Pᵀ has the factor above when column c of H' is column
         // position[c] of the factored matrix.
         let position: Vec<usize> = (0..n).map(|c| (c * 5) % n).collect();
@@ -388,12 +389,7 @@ mod tests {
         let mut rng = StdRng::seed_from_u64(8);
         for _ in 0..30 {
             let n = rng.random_range(1..30);
-            let (h, _) = random_spd(&mut rng, n);
-            let l = h
-                .clone()
-                .cholesky()
-                .map(|c| c.l())
-                .unwrap_or_else(|| unreachable!());
+            let (h, l, _) = random_spd(&mut rng, n);
             // Columns in supernodes of 1–5, every row below kept; the
             // diagonal block's upper part holds junk, which L is not.
             let mut f = Supernodes {
