@@ -70,8 +70,7 @@ pub fn evaluate(
     };
     // Map: nearest true cone for every landmark.
     let mut pairs = Vec::new();
-    // (trace Σ, eᵀΣ⁻¹e) of each matched landmark, while all have a Σ.
-    let mut consistency = Some(Vec::new());
+    let mut matched: Vec<(&Cone, Vector2<f64>)> = Vec::new();
     let mut by_color: HashMap<Color, (f64, usize)> = HashMap::new();
     for lm in map {
         let nearest = truth_map
@@ -82,15 +81,7 @@ pub fn evaluate(
         match nearest {
             Some((i, d)) if d <= MATCH_RADIUS => {
                 pairs.push((lm.position, truth_map[i].position));
-                let error = lm.position - truth_map[i].position;
-                let inverse = lm
-                    .covariance
-                    .try_inverse()
-                    .filter(|_| lm.covariance.trace() > 0.0);
-                consistency = consistency.and_then(|mut c| {
-                    c.push((lm.covariance.trace(), error.dot(&(inverse? * error))));
-                    Some(c)
-                });
+                matched.push((lm, truth_map[i].position));
                 let e = by_color.entry(truth_map[i].color).or_default();
                 e.0 += d * d;
                 e.1 += 1;
@@ -99,10 +90,9 @@ pub fn evaluate(
         }
     }
     report.map_rmse = rms(pairs.iter().map(|(a, b)| (a - b).norm()));
-    if let Some(c) = consistency.filter(|c| !c.is_empty()) {
-        let n = c.len() as f64;
-        report.map_rmse_predicted = Some((c.iter().map(|x| x.0).sum::<f64>() / n).sqrt());
-        report.map_nees = Some(c.iter().map(|x| x.1).sum::<f64>() / n);
+    if let Some((predicted, nees)) = covariance_scores(&matched) {
+        report.map_rmse_predicted = Some(predicted);
+        report.map_nees = Some(nees);
     }
     let (est, truth): (Vec<_>, Vec<_>) = pairs.iter().copied().unzip();
     report.map_rmse_aligned = aligned_rms(&est, &truth);
@@ -141,6 +131,26 @@ pub fn evaluate(
     report.association_accuracy = accuracy;
     report.detections = n;
     report
+}
+
+/// (√(mean trace Σ), mean eᵀΣ⁻¹e) over landmarks matched to true cones,
+/// or `None` if there are none or one has no invertible covariance.
+fn covariance_scores(matched: &[(&Cone, Vector2<f64>)]) -> Option<(f64, f64)> {
+    let terms: Vec<(f64, f64)> = matched
+        .iter()
+        .map(|(cone, truth)| {
+            let sigma = cone.covariance;
+            let inverse = sigma.try_inverse().filter(|_| sigma.trace() > 0.0)?;
+            let error = cone.position - truth;
+            Some((sigma.trace(), error.dot(&(inverse * error))))
+        })
+        .collect::<Option<_>>()?;
+    let n = terms.len() as f64;
+    (n > 0.0).then(|| {
+        let trace: f64 = terms.iter().map(|t| t.0).sum();
+        let nees: f64 = terms.iter().map(|t| t.1).sum();
+        ((trace / n).sqrt(), nees / n)
+    })
 }
 
 /// The fraction of detections associated correctly. Each landmark stands
