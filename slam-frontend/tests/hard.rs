@@ -62,6 +62,21 @@ fn a_hard_lap_that_maps_the_start_area_again_still_closes() {
 }
 
 #[test]
+fn a_long_lap_that_ends_nine_metres_off_still_closes() {
+    // Random track 0 (425 m), `hard` seed 4: the heading slips 3° on a
+    // sparse stretch and the first lap ends 9 m off, beyond the 8 m place
+    // recognition looked for on any lap (it never closed: ATE 10 m,
+    // association 89%). 3% of the distance driven is 12.7 m there.
+    let report = closed_hard_run(0, 4);
+    assert!(report.ate < 0.5, "{}", report.ate);
+    assert!(
+        report.association_accuracy > 0.99,
+        "{}",
+        report.association_accuracy
+    );
+}
+
+#[test]
 fn the_smoothing_window_learns_the_yaw_rate_bias_while_mapping() {
     // The `hard` preset's gyro reads 0.01 rad/s high. Estimated in the
     // window beside the poses, the bias is known to about 0.001 rad/s after

@@ -279,7 +279,8 @@ impl FastSlam {
             &particle.pose,
             self.run.config.loop_min_returned.max(cones.len() / 2),
             // A particle's drift can exceed half a cone spacing.
-            align::MAX_SHIFT,
+            align::BASE_SHIFT,
+            align::BASE_SHIFT,
         )
     }
 
