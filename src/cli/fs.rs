@@ -97,9 +97,10 @@ pub struct SlamArgs {
     /// Keep mapping after the loop closes instead of localising on the map.
     #[arg(long)]
     keep_mapping: bool,
-    /// With tracking association, do not match every detection again along
-    /// its tracker id's chain at the end of the run (about half of the
-    /// end-of-run time).
+    /// Do not match every detection again at the end of the run (along its
+    /// tracker id's chain with tracking association, alone with the other
+    /// methods), which takes about half of the end-of-run time; the
+    /// associations written are then those made in real time.
     #[arg(long)]
     no_hindsight: bool,
     /// Skip and count malformed log lines instead of stopping at the first.

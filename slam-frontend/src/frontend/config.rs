@@ -55,8 +55,9 @@ pub struct FrontEndConfig {
     /// False positives the detector makes per scan, spread over its view:
     /// how likely a detection is clutter rather than a cone.
     pub false_positives: f64,
-    /// With tracking association, match every detection again at the end
-    /// of the run along its tracker id's chain of sightings
+    /// Match every detection again at the end of the run, from the
+    /// optimised poses and map: along its tracker id's chain of sightings
+    /// with tracking association, alone with the other methods
     /// ([`GraphSlam::finish`](super::GraphSlam::finish)).
     pub hindsight: bool,
     /// Sightings before a tentative landmark joins the map.

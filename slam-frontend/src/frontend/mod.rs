@@ -210,12 +210,13 @@ impl GraphSlam {
     /// drift is independent, so the laps together pin the map's shape better
     /// than the first alone: standard preset, 15 tracks × 10 seeds, map RMSE
     /// 0.126 → 0.081 m), and then landmarks the whole run calls clutter
-    /// leave the map. With tracking association (unless
-    /// [`FrontEndConfig::hindsight`] is off), every detection is then
-    /// matched again along its tracker id's chain of sightings and the map
-    /// optimised once more (15 tracks × 5 seeds: association `standard`
-    /// 99.86 → 99.96%, `hard` 98.31 → 99.46%; the EUFS tracks' `hard` runs
-    /// from 95.3–96.7% to 98.5–99.6%). Not real-time: 40 ms–1.3 s for two
+    /// leave the map. Unless [`FrontEndConfig::hindsight`] is off, every
+    /// detection is then matched again and the map optimised once more:
+    /// with tracking association along its tracker id's chain of sightings
+    /// (15 tracks × 5 seeds: association `standard` 99.86 → 99.96%, `hard`
+    /// 98.31 → 99.46%; the EUFS tracks' `hard` runs from 95.3–96.7% to
+    /// 98.5–99.6%), with the other methods each detection alone (15 tracks
+    /// × 10 seeds, `hard`: 97.2–98.0% → 98.0–98.4%). Not real-time: 40 ms–1.3 s for two
     /// laps, reported apart from the loop closures
     /// ([`Timing::final_optimisation`]). A failed solve keeps the estimate
     /// as it was.
