@@ -52,13 +52,7 @@ fn a_hard_lap_that_maps_the_start_area_again_still_closes() {
     // area a second time and a single scan puts too few detections on the
     // first lap's landmarks. The landmarks of the lap's last 40 m, aligned
     // to those of its start, close the loop.
-    let report = closed_hard_run(0, 1);
-    assert!(report.ate < 1.0, "{}", report.ate);
-    assert!(
-        report.association_accuracy > 0.95,
-        "{}",
-        report.association_accuracy
-    );
+    closes_within(0, 1, 1.0, 0.95);
 }
 
 #[test]
@@ -67,13 +61,15 @@ fn a_long_lap_that_ends_nine_metres_off_still_closes() {
     // sparse stretch and the first lap ends 9 m off, beyond the 8 m place
     // recognition looked for on any lap (it never closed: ATE 10 m,
     // association 89%). 3% of the distance driven is 12.7 m there.
-    let report = closed_hard_run(0, 4);
-    assert!(report.ate < 0.5, "{}", report.ate);
-    assert!(
-        report.association_accuracy > 0.99,
-        "{}",
-        report.association_accuracy
-    );
+    closes_within(0, 4, 0.5, 0.99);
+}
+
+/// [`closed_hard_run`], with ATE below `ate` and association above `accuracy`.
+fn closes_within(track: u64, seed: u64, ate: f64, accuracy: f64) {
+    let report = closed_hard_run(track, seed);
+    assert!(report.ate < ate, "{}", report.ate);
+    let got = report.association_accuracy;
+    assert!(got > accuracy, "{got}");
 }
 
 #[test]
@@ -207,23 +203,35 @@ fn far_detections_matched_alone_gain_from_hindsight_too() {
     // final poses and map instead of those of the moment it was seen, with
     // clutter as an alternative to every landmark. Measured 97.4 → 98.4%,
     // 98.1 → 98.7%, 98.4 → 99.1%.
-    let tight = tight_rules();
-    for (track, seed) in [(1, 0), (1, 2), (2, 2)] {
-        let (sim, config) = hard_sim_on(track, seed, &tight);
-        let accuracy = |hindsight: bool| {
-            let config = FrontEndConfig {
-                hindsight,
-                association: AssociationMethod::MaximumLikelihood,
-                ..config.clone()
-            };
-            let (slam, report) = run_and_score(&sim, config);
-            assert_eq!(slam.loop_closures(), 1, "track {track} seed {seed}");
-            report.association_accuracy
-        };
-        let (without, with) = (accuracy(false), accuracy(true));
-        println!("track {track} seed {seed}: {without} → {with}");
+    for (without, with) in hindsight_on_tight_tracks(AssociationMethod::MaximumLikelihood) {
         assert!(with > without + 0.005, "{without} → {with}");
     }
+}
+
+/// Association accuracy without and with the matching in hindsight, under
+/// `method`, on `hard` runs of tight random tracks 1 (seeds 0 and 2) and 2
+/// (seed 2).
+fn hindsight_on_tight_tracks(method: AssociationMethod) -> Vec<(f64, f64)> {
+    let tight = tight_rules();
+    [(1, 0), (1, 2), (2, 2)]
+        .into_iter()
+        .map(|(track, seed)| {
+            let (sim, config) = hard_sim_on(track, seed, &tight);
+            let accuracy = |hindsight: bool| {
+                let config = FrontEndConfig {
+                    hindsight,
+                    association: method,
+                    ..config.clone()
+                };
+                let (slam, report) = run_and_score(&sim, config);
+                assert_eq!(slam.loop_closures(), 1, "track {track} seed {seed}");
+                report.association_accuracy
+            };
+            let (without, with) = (accuracy(false), accuracy(true));
+            println!("track {track} seed {seed}: {without} → {with}");
+            (without, with)
+        })
+        .collect()
 }
 
 #[test]
@@ -232,21 +240,8 @@ fn tracker_chains_put_the_far_detections_right_in_hindsight() {
     // than far detections' noise (0.3–0.4 m at 10–15 m): matched alone in
     // real time, about 4% go to a neighbour. At the end of the run the
     // tracker id ties each to the near sightings of the same cone.
-    let tight = tight_rules();
     // Measured 97.6 → 98.7%, 98.3 → 99.6%, 97.9 → 99.3%.
-    for (track, seed) in [(1, 0), (1, 2), (2, 2)] {
-        let (sim, config) = hard_sim_on(track, seed, &tight);
-        let accuracy = |hindsight: bool| {
-            let config = FrontEndConfig {
-                hindsight,
-                ..config.clone()
-            };
-            let (slam, report) = run_and_score(&sim, config);
-            assert_eq!(slam.loop_closures(), 1, "track {track} seed {seed}");
-            report.association_accuracy
-        };
-        let (without, with) = (accuracy(false), accuracy(true));
-        println!("track {track} seed {seed}: {without} → {with}");
+    for (without, with) in hindsight_on_tight_tracks(AssociationMethod::Tracking) {
         assert!(with > without + 0.007, "{without} → {with}");
         assert!(with > 0.985, "{with}");
     }
