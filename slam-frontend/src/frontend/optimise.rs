@@ -312,7 +312,8 @@ const FAR: (f64, f64) = (1.0, 0.017);
 
 impl Batch {
     /// At a loop closure, in the real-time loop: every 4th pose (every 8th
-    /// when the end of the run matches everything again in hindsight),
+    /// when the end of the run matches everything again along tracker
+    /// chains, `tracker_chains`),
     /// [`MAX_SIGHTINGS`] sightings per landmark and one Gauss–Newton step from the
     /// smoother's estimate. The final optimisation refines it all, so the
     /// loop closure only has to give the later laps a good map. Measured on
@@ -331,9 +332,9 @@ impl Batch {
     /// moves the last pose by more than [`FAR`] it goes on to 10 (`hard`,
     /// 15 tracks × 10 seeds: association 97.92% → 98.19%; `standard`
     /// unchanged, the hairpins never go on).
-    pub fn loop_closure(hindsight: bool) -> Self {
+    pub fn loop_closure(tracker_chains: bool) -> Self {
         Self {
-            stride: if hindsight { 8 } else { 4 },
+            stride: if tracker_chains { 8 } else { 4 },
             sightings: MAX_SIGHTINGS,
             near: NEAR_SIGHTING,
             iterations: 1,
