@@ -65,12 +65,6 @@ impl GraphSlam {
         self.config.hindsight
     }
 
-    /// Whether the matching in hindsight follows tracker ids (tracking
-    /// association); the other methods match each detection alone.
-    pub(super) fn follows_tracker_ids(&self) -> bool {
-        self.matches_in_hindsight() && self.config.association == AssociationMethod::Tracking
-    }
-
     /// Matches every detection of `scans` again from the poses and map as
     /// they stand, chain by chain, one landmark per detection per scan, and
     /// rebuilds the sightings from the result. Landmarks left without a
@@ -127,7 +121,9 @@ impl GraphSlam {
                     landmarks: pairs.iter().map(|p| (p.landmark, p.cost)).collect(),
                     clutter,
                 };
-                let id = d.id.filter(|_| self.follows_tracker_ids());
+                // Without tracking association every detection is a chain of its own.
+                let id =
+                    d.id.filter(|_| self.config.association == AssociationMethod::Tracking);
                 let chain = match id.and_then(|id| open.get(&id).map(|&o| (id, o))) {
                     Some((id, (last, c))) if scan <= last + CHAIN_GAP => {
                         open.insert(id, (scan, c));

@@ -302,7 +302,7 @@ impl GraphSlam {
         self.loop_closures += 1;
         self.closed_at = Some(self.motion.distance());
         if let Err(e) = self.optimise(super::optimise::Batch::loop_closure(
-            self.follows_tracker_ids(),
+            self.matches_in_hindsight(),
         )) {
             self.warnings.push(format!(
                 "loop closure {}: the optimisation failed ({e}); kept the estimate",
