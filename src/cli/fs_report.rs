@@ -165,7 +165,8 @@ pub fn run(a: ReportArgs) -> Result<(), String> {
          sighting too broke the loops that close on far sightings of the start area \
          (epfl_fsds_competition_1: 44% association).\n\
          - **Loop closure time** is one Hessian structure, its symbolic analysis and one \
-         Gauss–Newton step over every 4th pose (with its bias) and the landmarks (the poses \
+         Gauss–Newton step over every 8th pose (every 4th without the matching in hindsight; \
+         with its bias) and the landmarks (the poses \
          between follow; the final optimisation refines them all). Every pose and two steps took \
          160 ms on the 828 m hairpins, whose tight turns let each cone be seen from far more \
          poses. Run alone at every 4th pose (maximum likelihood, seed 0: 3,600 unknowns, 5,500 \
@@ -174,12 +175,13 @@ pub fn run(a: ReportArgs) -> Result<(), String> {
          ~1 ms; 17–24 ms in all on a day this machine ran slow, against 27–37 ms with the far \
          sightings. Fewer poses thin the factor \
          but cost association: every 6th pose 99.52 → 99.48% (15 tracks × 10 seeds), every 8th \
-         99.22% (measured before the exchange step). Tracking association, whose detections \
-         are all matched again in hindsight at the end of the run, keeps every 8th pose: the \
-         same final association (15 tracks × 5 seeds: 99.97% / 99.48%, against 99.97% / 99.49% \
-         at every 4th) and a shorter loop closure (maximum \
-         likelihood, without that pass, lost 99.83 → 99.71% `standard` at every 8th and keeps \
-         every 4th). This report runs two runs at once, and \
+         99.22% (measured before the exchange step). Every method's detections are matched \
+         again in hindsight at the end of the run (below), so the loop closure keeps every 8th \
+         pose: the same final association (tracking, 15 tracks × 5 seeds: 99.97% / 99.48%, \
+         against 99.97% / 99.49% at every 4th; the others, 15 tracks × 10 seeds: 99.82–99.83% \
+         `standard` either way, `hard` 98.21–98.39% against 97.99–98.40%) and a shorter loop \
+         closure (maximum likelihood on the hairpins, run alone: 11.0 → 7.1 ms; without the \
+         pass it had lost 99.83 → 99.71% `standard` at every 8th). This report runs two runs at once, and \
          latencies on this shared 2-core machine vary up to 3× between identical runs and \
          between days.\n\
          - **Association** (in real time 99.7–99.9% on most tracks): the `standard` preset gates at χ² \
