@@ -314,3 +314,38 @@ fn a_detector_noisier_than_assumed_is_warned_about_and_can_be_described() {
     let (ok, _) = run(&["--range-sigma-relative", "0"]);
     assert!(ok, "a range σ that does not grow with range is allowed");
 }
+
+#[test]
+fn the_report_runs_the_seeds_it_is_given() {
+    // One random track, no shared ones: 2 presets × 4 methods × 2 seeds.
+    let dir = temp_dir("report");
+    let (tracks, out) = (dir.join("tracks"), dir.join("report.md"));
+    std::fs::create_dir_all(&tracks).unwrap();
+    let report = |first: &str| {
+        let args = ["--random", "1", "--seeds", "2", "--first-seed", first];
+        let command = [
+            &["fs-report", "--tracks", s(&tracks), "-o", s(&out)],
+            &args[..],
+        ];
+        let o = cairn(&command.concat());
+        assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+        std::fs::read_to_string(&out).unwrap()
+    };
+    let (first, later) = (report("0"), report("3"));
+    let head = |r: &str| r[..300].to_string();
+    assert!(
+        first.contains("fs-report --seeds 2 --random 1`"),
+        "{}",
+        head(&first)
+    );
+    assert!(
+        later.contains("fs-report --seeds 2 --random 1 --first-seed 3`"),
+        "{}",
+        head(&later)
+    );
+    assert!(later.contains("(16 runs: 1 tracks"), "{}", head(&later));
+    assert!(dir.join("report").join("random-0.svg").exists());
+    // Other seeds, other runs: the per-track tables differ.
+    let tables = |r: &str| r[r.find("## Per track").unwrap()..].to_string();
+    assert_ne!(tables(&first), tables(&later));
+}
