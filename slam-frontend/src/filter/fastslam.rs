@@ -279,8 +279,10 @@ impl FastSlam {
             &particle.pose,
             self.run.config.loop_min_returned.max(cones.len() / 2),
             // A particle's drift can exceed half a cone spacing.
-            align::BASE_SHIFT,
-            align::BASE_SHIFT,
+            align::Reach {
+                unambiguous: align::BASE_SHIFT,
+                max_shift: align::BASE_SHIFT,
+            },
         )
     }
 

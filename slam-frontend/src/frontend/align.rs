@@ -38,8 +38,9 @@ pub fn place(map: &[(Vector2<f64>, Color)], detections: &[Detection], here: &SE2
 /// geometrically.
 ///
 /// A row of evenly spaced cones fits as well shifted by one spacing. So a
-/// correction of more than `unambiguous` metres (up to `max_shift`) is
-/// taken only when the start line's big orange cones agree with it, and
+/// correction of more than [`Reach::unambiguous`] metres (up to
+/// [`Reach::max_shift`]) is taken only when the start line's big orange
+/// cones agree with it, and
 /// the chosen fit must beat every fit more than half a spacing away by
 /// [`MARGIN`]; otherwise the scan is ambiguous and `None` waits for the
 /// next one.
@@ -49,15 +50,14 @@ pub fn recognise(
     proposers: &[Detection],
     pose: &SE2,
     needed: usize,
-    unambiguous: f64,
-    max_shift: f64,
+    reach: Reach,
 ) -> Option<SE2> {
     if old.len() < needed {
         return None;
     }
-    let fits = fits(old, detections, proposers, Some((pose, max_shift)));
+    let fits = fits(old, detections, proposers, Some((pose, reach.max_shift)));
     let anchored = |f: &Fit| {
-        pose.between(&f.pose).t.norm() <= unambiguous || f.start_line >= START_LINE_INLIERS
+        pose.between(&f.pose).t.norm() <= reach.unambiguous || f.start_line >= START_LINE_INLIERS
     };
     let best = fits
         .iter()
@@ -224,6 +224,15 @@ pub fn max_shift(distance: f64) -> f64 {
     BASE_SHIFT.max(SHIFT_PER_METRE * distance)
 }
 
+/// How far place recognition may move the car (m).
+#[derive(Clone, Copy, Debug)]
+pub struct Reach {
+    /// Corrections up to this need no confirmation by the start line.
+    pub unambiguous: f64,
+    /// No correction beyond this.
+    pub max_shift: f64,
+}
+
 /// Median distance from each boundary cone to the nearest one of a
 /// compatible colour (m); 5 m, the rules' largest spacing, when there are
 /// too few. The start line's orange cones stand closer and would make the
@@ -321,15 +330,11 @@ mod tests {
         unambiguous: f64,
     ) -> Option<SE2> {
         let detections = scan(map, truth);
-        recognise(
-            map,
-            &detections,
-            &detections,
-            drifted,
-            4,
+        let reach = Reach {
             unambiguous,
-            max_shift(0.0),
-        )
+            max_shift: BASE_SHIFT,
+        };
+        recognise(map, &detections, &detections, drifted, 4, reach)
     }
 
     fn assert_same(found: Option<SE2>, truth: &SE2) {
@@ -379,18 +384,11 @@ mod tests {
             .into_iter()
             .filter(|d| d.color != Color::BigOrange || d.position.x < 6.5)
             .collect();
-        assert!(
-            recognise(
-                &map,
-                &one_pair,
-                &one_pair,
-                &drifted,
-                4,
-                limit,
-                max_shift(0.0)
-            )
-            .is_none()
-        );
+        let reach = Reach {
+            unambiguous: limit,
+            max_shift: BASE_SHIFT,
+        };
+        assert!(recognise(&map, &one_pair, &one_pair, &drifted, 4, reach).is_none());
     }
 
     #[test]
@@ -403,8 +401,11 @@ mod tests {
         let limit = unambiguous_shift(&row());
         let detections = scan(&map, &truth);
         let after = |distance| {
-            let shift = max_shift(distance);
-            recognise(&map, &detections, &detections, &drifted, 4, limit, shift)
+            let reach = Reach {
+                unambiguous: limit,
+                max_shift: max_shift(distance),
+            };
+            recognise(&map, &detections, &detections, &drifted, 4, reach)
         };
         assert!(after(100.0).is_none());
         assert_same(after(400.0), &truth);

@@ -131,7 +131,7 @@ impl GraphSlam {
                     }
                     _ => {
                         chains.push(Vec::new());
-                        if let Some(id) = d.id {
+                        if let Some(id) = id {
                             open.insert(id, (scan, chains.len() - 1));
                         }
                         chains.len() - 1

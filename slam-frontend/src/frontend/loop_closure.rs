@@ -104,36 +104,22 @@ impl GraphSlam {
             .max(unexplained.len().min(old.len()) / 2);
         // A correction of half a cone spacing or more could as well be one
         // spacing off; the start line's orange cones must confirm it.
-        let unambiguous = align::unambiguous_shift(&map);
-        let max_shift = align::max_shift(self.motion.distance());
+        let reach = align::Reach {
+            unambiguous: align::unambiguous_shift(&map),
+            max_shift: align::max_shift(self.motion.distance()),
+        };
         // Where drift put the car's estimate more than a gate away, the
         // lap's end has mapped the start area again: its landmarks, each
         // placed by many sightings, are aligned when the scan alone is not.
-        let found = align::recognise(
-            &map,
-            cones,
-            &unexplained,
-            &self.pose,
-            needed,
-            unambiguous,
-            max_shift,
-        )
-        .or_else(|| {
-            let recent = self.recent_submap();
-            let needed = self
-                .config
-                .loop_min_returned
-                .max(recent.len().min(old.len()) / 2);
-            align::recognise(
-                &map,
-                &recent,
-                &recent,
-                &self.pose,
-                needed,
-                unambiguous,
-                max_shift,
-            )
-        });
+        let found =
+            align::recognise(&map, cones, &unexplained, &self.pose, needed, reach).or_else(|| {
+                let recent = self.recent_submap();
+                let needed = self
+                    .config
+                    .loop_min_returned
+                    .max(recent.len().min(old.len()) / 2);
+                align::recognise(&map, &recent, &recent, &self.pose, needed, reach)
+            });
         let Some(aligned) = found else {
             return false;
         };
