@@ -24,6 +24,7 @@ use super::Observation;
 use super::association::AssociationMethod;
 use super::edges::nearest_information;
 use super::loop_closure::PendingScan;
+use crate::sighting::JUDGE_AFTER;
 use std::collections::HashMap;
 
 /// How likely a tracker id moves to another object between two sightings:
@@ -144,11 +145,11 @@ impl GraphSlam {
     }
 
     /// The sightings and each landmark's colour votes again, from the
-    /// detections of `scans` as now matched. Landmarks matched fewer times
-    /// than a tentative one needs to be confirmed leave the map: typically
-    /// a cone's second landmark, whose detections the chains gave to the
-    /// first, left with a false positive or two that would pull it off the
-    /// cone.
+    /// detections of `scans` as now matched. Landmarks matched fewer than
+    /// [`JUDGE_AFTER`] times (or than a tentative one needs to be confirmed)
+    /// leave the map: typically a cone's second landmark, whose detections
+    /// the chains gave to the first, left with a false positive or two that
+    /// would pull it off the cone, or a clutter object seen only from afar.
     fn rebuild_sightings(&mut self, scans: &[PendingScan]) {
         let mut votes = vec![[0u32; 5]; self.landmarks.len()];
         for s in scans {
@@ -163,7 +164,7 @@ impl GraphSlam {
             let sighting = &mut self.landmarks[l].sighting;
             sighting.votes = votes[l];
             sighting.seen = seen;
-            if seen < self.config.confirm_after {
+            if seen < self.config.confirm_after.max(JUDGE_AFTER) {
                 self.landmarks[l].removed = true;
             }
         }

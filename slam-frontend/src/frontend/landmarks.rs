@@ -3,7 +3,7 @@
 
 use super::{GraphSlam, Landmark, Mode, window};
 use crate::log::Detection;
-use crate::sighting::{Sighting, in_view};
+use crate::sighting::{Sighting, ViewMargin, in_view, in_view_within};
 use cairn_core::SE2;
 use nalgebra::{Matrix2, Matrix3, SMatrix};
 
@@ -99,7 +99,8 @@ impl GraphSlam {
     /// seen fewer than six times is not judged by its colours, and one
     /// seen in half the scans survives the misses; on eufs_rand that kept
     /// 32 of its 134 clutter objects per run. The final poses say in which
-    /// scans each landmark was well in view. Judged once: judged after
+    /// scans each landmark was in view, with a margin for their errors
+    /// ([`ViewMargin::FINAL`]) rather than the mapping's. Judged once: judged after
     /// every scan, a cone misread a few times early in the second lap was
     /// dropped (epfl_track_3).
     pub(super) fn drop_clutter(&mut self) {
@@ -115,7 +116,7 @@ impl GraphSlam {
             let mean = self.landmarks[l].mean;
             let (mut hits, mut misses) = (0, 0);
             for (k, inverse) in inverses.iter().enumerate() {
-                if in_view(&self.config, inverse, &mean) {
+                if in_view_within(&self.config, inverse, &mean, ViewMargin::FINAL) {
                     if seen.binary_search(&k).is_ok() {
                         hits += 1;
                     } else {
