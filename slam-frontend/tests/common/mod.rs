@@ -1,0 +1,18 @@
+//! Helpers shared by the front end's integration tests.
+
+use cairn_slam::course::Course;
+use cairn_slam::sim::{SimConfig, Simulation, simulate};
+use cairn_slam::track::Track;
+
+/// A run of the default simulation (two laps, `standard`) of `track` with
+/// noise `seed`.
+pub fn simulate_seed(track: &Track, course: &Course, seed: u64) -> Simulation {
+    simulate(
+        track,
+        course,
+        &SimConfig {
+            seed,
+            ..SimConfig::default()
+        },
+    )
+}
