@@ -337,11 +337,22 @@ mod tests {
         unambiguous: f64,
     ) -> Option<SE2> {
         let detections = scan(map, truth);
-        let reach = Reach {
+        recognise(
+            map,
+            &detections,
+            &detections,
+            drifted,
+            4,
+            lap_reach(unambiguous),
+        )
+    }
+
+    /// The reach of a lap short enough for the base shift.
+    fn lap_reach(unambiguous: f64) -> Reach {
+        Reach {
             unambiguous,
             max_shift: BASE_SHIFT,
-        };
-        recognise(map, &detections, &detections, drifted, 4, reach)
+        }
     }
 
     fn assert_same(found: Option<SE2>, truth: &SE2) {
@@ -391,10 +402,7 @@ mod tests {
             .into_iter()
             .filter(|d| d.color != Color::BigOrange || d.position.x < 6.5)
             .collect();
-        let reach = Reach {
-            unambiguous: limit,
-            max_shift: BASE_SHIFT,
-        };
+        let reach = lap_reach(limit);
         assert!(recognise(&map, &one_pair, &one_pair, &drifted, 4, reach).is_none());
     }
 
@@ -419,10 +427,7 @@ mod tests {
             detections.push(beside);
         }
         let drifted = SE2::new(12.5, 0.0, 0.0);
-        let reach = Reach {
-            unambiguous: unambiguous_shift(&row()),
-            max_shift: BASE_SHIFT,
-        };
+        let reach = lap_reach(unambiguous_shift(&row()));
         let found = recognise(&map, &detections, &detections, &drifted, 4, reach);
         assert!(found.is_none(), "{found:?}");
         // Both orange pairs in view (and nothing beside the track) anchor
