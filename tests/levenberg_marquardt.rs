@@ -53,3 +53,65 @@ fn non_monotonic_lm_keeps_the_lowest_chi2_it_met() {
     // end above their lowest point, so both paths are exercised.
     assert!(climbed > 0 && left_lowest > 0, "{climbed} {left_lowest}");
 }
+
+/// LM with the default options on a generated Manhattan world of 500 poses,
+/// with and without the Gauss-Newton look-ahead, and Gauss-Newton.
+fn look_ahead_runs(sigma_rotation: f64, seed: u64) -> [cairn::solvers::Summary; 3] {
+    use cairn::solvers::{Algorithm, SolverConfig};
+    let options = ManhattanOptions {
+        poses: 500,
+        size: 22,
+        sigma_rotation,
+        seed,
+        ..Default::default()
+    };
+    let with = common::lm_config(5);
+    let mut without = with;
+    without.lm.lookahead_steps = 0;
+    let gn = SolverConfig {
+        algorithm: Algorithm::GaussNewton,
+        ..Default::default()
+    };
+    [with, without, gn].map(|config| optimize(&mut manhattan(&options).unwrap(), config).unwrap())
+}
+
+#[test]
+fn lm_follows_a_gauss_newton_path_that_climbs_and_settles_below_the_start() {
+    let [with, without, gn] = look_ahead_runs(0.08, 4);
+    let path = with.trace.iter().take_while(|t| t.lambda == Some(0.0));
+    let path: Vec<f64> = path.map(|t| t.chi2).collect();
+    eprintln!(
+        "path {path:?}; LM {} iterations to {}, without the look-ahead {} to {}, GN {} to {}",
+        with.iterations,
+        with.final_chi2,
+        without.iterations,
+        without.final_chi2,
+        gn.iterations,
+        gn.final_chi2
+    );
+    // The first step climbs, each one after it descends, and the last ends
+    // below the start, settled.
+    assert!(path.len() >= 3 && path[0] > with.initial_chi2, "{path:?}");
+    assert!(path.windows(2).all(|w| w[1] < w[0]), "{path:?}");
+    let (last, before) = (path[path.len() - 1], path[path.len() - 2]);
+    assert!(last < with.initial_chi2 && (before - last) / before < 1e-3);
+    // It ends where Gauss-Newton does, in about as many iterations and
+    // factorisations, where damped steps from the start take twice as many.
+    assert!((with.final_chi2 - gn.final_chi2).abs() <= 1e-6 * gn.final_chi2);
+    assert!(with.iterations <= gn.iterations + 1);
+    let solves = |s: &cairn::solvers::Summary| s.trace.iter().map(|t| t.trials).sum::<usize>();
+    assert_eq!(solves(&with), with.iterations);
+    assert!(without.iterations >= 2 * with.iterations);
+    assert!(solves(&without) >= 3 * solves(&with));
+}
+
+#[test]
+fn lm_goes_back_to_the_start_when_the_gauss_newton_path_does_not_settle() {
+    let [with, without, _] = look_ahead_runs(0.1, 9);
+    // The first step was rejected after the look-ahead: the run is the one
+    // without it, to the bit.
+    assert!(with.trace[0].trials > 1);
+    assert!(with.trace.iter().all(|t| t.lambda != Some(0.0)));
+    assert_eq!(with.iterations, without.iterations);
+    assert_eq!(with.final_chi2.to_bits(), without.final_chi2.to_bits());
+}

@@ -92,6 +92,12 @@ pub struct SolveArgs {
     /// every accepted step lower χ². Default 5 (marquardt), 0 (levenberg, as g2o).
     #[arg(long)]
     nonmonotonic_steps: Option<usize>,
+    /// Levenberg-Marquardt's look-ahead: when its first step raises χ², it
+    /// follows up to this many Gauss-Newton steps and keeps them if they
+    /// settle below the starting χ². 0 rejects that step. Default 10
+    /// (marquardt), 0 (levenberg, as g2o).
+    #[arg(long)]
+    lookahead_steps: Option<usize>,
     /// Starting point.
     #[arg(long, value_enum, default_value = "auto")]
     init: InitName,
@@ -344,6 +350,7 @@ fn solve(a: SolveArgs) -> Result<(), String> {
         lm: LevenbergMarquardtConfig {
             tau,
             nonmonotonic_steps: a.nonmonotonic_steps.unwrap_or(lm.nonmonotonic_steps),
+            lookahead_steps: a.lookahead_steps.unwrap_or(lm.lookahead_steps),
             ..lm
         },
         linear: LinearSolverConfig {

@@ -105,8 +105,10 @@ impl Optimizer {
     /// Damped Gauss-Newton steps (H + λD) s = −g, λ from τ and Nielsen's
     /// update; each trial point is linearised once, into a second H that
     /// becomes the current one if the step is accepted. Steps that raise χ²
-    /// may be accepted (see [`NonMonotone`]); the estimate returned is the
-    /// one with the lowest χ².
+    /// may be accepted (see [`NonMonotone`]), and a first step that does
+    /// may lead a Gauss-Newton path, kept if it settles below the start
+    /// (see [`Self::follow_gauss_newton`]; its steps are reported with
+    /// λ = 0); the estimate returned is the one with the lowest χ².
     pub(super) fn levenberg_marquardt(
         &mut self,
         graph: &mut Graph,
@@ -128,8 +130,9 @@ impl Optimizer {
         let mut steps = NonMonotone::new(chi2, self.config.lm.nonmonotonic_steps);
         // The lowest-χ² estimate, saved when a step first leaves it.
         let mut lowest = Vec::new();
+        let mut iteration = 0;
         let termination = 'run: {
-            for iteration in 0..self.config.max_iterations {
+            'iterations: while iteration < self.config.max_iterations {
                 let began = Instant::now();
                 let mut phases = PhaseTimes::default();
                 let gradient_max = max_abs(&self.gradient);
@@ -173,11 +176,35 @@ impl Optimizer {
                         ni = 2.0;
                         break Some(trial_chi2);
                     }
-                    lambda *= ni;
-                    ni *= 2.0;
                     // A step too small to matter that fails is rounding at the
                     // optimum: raising λ would only shrink it further.
                     rejected_small_step = solved && self.step_is_small(graph);
+                    if iteration == 0
+                        && trials == 1
+                        && solved
+                        && trial_chi2.is_finite()
+                        && !rejected_small_step
+                        && self.config.lm.lookahead_steps > 0
+                        && self.config.lm.nonmonotonic_steps > 0
+                    {
+                        let first = (trial_chi2, predicted, gradient_max, phases);
+                        match self.follow_gauss_newton(graph, chi2, first, began, start) {
+                            Ok(path) => {
+                                for (stats, predicted) in path {
+                                    steps.accept(stats.chi2, predicted);
+                                    chi2 = stats.chi2;
+                                    iteration += 1;
+                                    summary.final_chi2 = chi2;
+                                    on_iteration(&stats);
+                                    summary.trace.push(stats);
+                                }
+                                continue 'iterations;
+                            }
+                            Err(spent) => phases = spent,
+                        }
+                    }
+                    lambda *= ni;
+                    ni *= 2.0;
                     if solved {
                         let t = Instant::now();
                         self.restore(graph);
@@ -223,6 +250,7 @@ impl Optimizer {
                     break 'run end;
                 }
                 chi2 = new_chi2;
+                iteration += 1;
             }
             Termination::MaxIterations
         };
@@ -233,6 +261,92 @@ impl Optimizer {
         }
         termination
     }
+}
+
+/// A step of the Gauss-Newton path LM followed: its statistics (as an
+/// iteration) and the decrease its model predicted.
+type PathStep = (IterationStats, f64);
+
+impl Optimizer {
+    /// Follows the Gauss-Newton path from LM's rejected first step (the
+    /// graph is at its trial point, `first` = its χ², predicted decrease,
+    /// the start's largest gradient and the trial's phase times), as
+    /// [`LevenbergMarquardtConfig::lookahead_steps`] describes. Returns the
+    /// path's steps if it settled below `start_chi2`, H and the gradient
+    /// being its end's; otherwise puts the graph, H and the gradient back
+    /// at the start and returns the phase times spent.
+    ///
+    /// [`LevenbergMarquardtConfig::lookahead_steps`]: crate::LevenbergMarquardtConfig::lookahead_steps
+    fn follow_gauss_newton(
+        &mut self,
+        graph: &mut Graph,
+        start_chi2: f64,
+        (trial_chi2, predicted, gradient_max, mut phases): (f64, f64, f64, PhaseTimes),
+        mut began: Instant,
+        start: Instant,
+    ) -> Result<Vec<PathStep>, PhaseTimes> {
+        /// A step that lowers χ² by less than this fraction ends the path.
+        const SETTLED: f64 = 1e-3;
+        let max_steps = self
+            .config
+            .lm
+            .lookahead_steps
+            .min(self.config.max_iterations);
+        let mut path: Vec<PathStep> = Vec::new();
+        let mut spent = PhaseTimes::default();
+        let mut step = (trial_chi2, predicted, gradient_max);
+        let mut previous = start_chi2;
+        loop {
+            let (chi2, predicted, gradient_max) = step;
+            self.accept(&mut phases);
+            let stats = IterationStats {
+                iteration: path.len(),
+                chi2,
+                lambda: Some(0.0),
+                trials: 1,
+                gradient_max,
+                step_max: max_abs(&self.step),
+                time: since(began),
+                cumulative_time: since(start),
+                phases,
+                ..Default::default()
+            };
+            spent.add(&phases);
+            path.push((stats, predicted));
+            if chi2 < start_chi2 && (previous - chi2) / previous < SETTLED {
+                return Ok(path);
+            }
+            previous = chi2;
+            if path.len() == max_steps {
+                break;
+            }
+            began = Instant::now();
+            phases = PhaseTimes::default();
+            let gradient_max = max_abs(&self.gradient);
+            if !self.compute_step(0.0, &mut phases) {
+                spent.add(&phases);
+                break;
+            }
+            let predicted = -dot(&self.step, &self.gradient) + 1e-3;
+            let t = Instant::now();
+            self.apply_step(graph);
+            phases.update += since(t);
+            let chi2 = self.linearize_trial(graph, &mut phases, true);
+            // NaN ends the path too.
+            if chi2.is_nan() || chi2 >= previous {
+                spent.add(&phases);
+                break;
+            }
+            step = (chi2, predicted, gradient_max);
+        }
+        self.restore(graph);
+        self.linearize(graph, &mut spent);
+        Err(spent)
+    }
+}
+
+fn dot(a: &[f64], b: &[f64]) -> f64 {
+    a.iter().zip(b).map(|(x, y)| x * y).sum()
 }
 
 #[cfg(test)]
