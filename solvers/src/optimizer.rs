@@ -20,6 +20,10 @@ fn max_abs(v: &[f64]) -> f64 {
     v.iter().fold(0.0, |m, x| m.max(x.abs()))
 }
 
+fn dot(a: &[f64], b: &[f64]) -> f64 {
+    a.iter().zip(b).map(|(x, y)| x * y).sum()
+}
+
 /// Where the last linearisation put its result.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 enum Pending {

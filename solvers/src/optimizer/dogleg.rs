@@ -1,14 +1,10 @@
 //! Powell's dogleg over the same linear system as Gauss-Newton.
 
-use super::{max_abs, record, since};
+use super::{dot, max_abs, record, since};
 use crate::config::{IterationStats, PhaseTimes, Summary, Termination};
 use crate::optimizer::Optimizer;
 use cairn_core::Graph;
 use std::time::Instant;
-
-fn dot(a: &[f64], b: &[f64]) -> f64 {
-    a.iter().zip(b).map(|(x, y)| x * y).sum()
-}
 
 impl Optimizer {
     /// One trust-region iteration per linearisation: the Gauss-Newton step if it

@@ -1,6 +1,6 @@
 //! Levenberg-Marquardt over the same linear system as Gauss-Newton.
 
-use super::{max_abs, record, since};
+use super::{dot, max_abs, record, since};
 use crate::config::{Damping, IterationStats, PhaseTimes, Summary, Termination};
 use crate::optimizer::Optimizer;
 use cairn_core::Graph;
@@ -343,10 +343,6 @@ impl Optimizer {
         self.linearize(graph, &mut spent);
         Err(spent)
     }
-}
-
-fn dot(a: &[f64], b: &[f64]) -> f64 {
-    a.iter().zip(b).map(|(x, y)| x * y).sum()
 }
 
 #[cfg(test)]
