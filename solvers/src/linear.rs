@@ -228,6 +228,10 @@ enum Factor {
 /// faer's factor with its symbolic analysis and work space.
 struct FaerCholesky {
     symbolic: SymbolicCholesky<usize>,
+    /// H's lower triangle, for the supernodal factorisation without a
+    /// permutation, which reads that triangle (given the upper one, faer
+    /// transposes it into new arrays at every factorisation).
+    lower: Option<Box<LowerTriangle>>,
     values: Vec<f64>,
     /// Rows below one supernode's diagonal block, for the solves.
     work: Vec<f64>,
@@ -243,17 +247,67 @@ impl std::fmt::Debug for FaerCholesky {
     }
 }
 
+/// The lower triangle of a symmetric matrix given by its upper one: the
+/// pattern, and where each of its values sits among the upper one's.
+struct LowerTriangle {
+    pattern: SymbolicSparseColMat<usize>,
+    source: Vec<usize>,
+    values: Vec<f64>,
+}
+
+impl LowerTriangle {
+    fn new(upper: SymbolicSparseColMatRef<'_, usize>) -> Self {
+        let n = upper.ncols();
+        let row_idx = upper.row_idx();
+        let mut count = vec![0usize; n + 1];
+        for &r in row_idx {
+            count[r + 1] += 1;
+        }
+        for j in 0..n {
+            count[j + 1] += count[j];
+        }
+        let lower_ptr = count.clone();
+        let mut lower_rows = vec![0; row_idx.len()];
+        let mut source = vec![0; row_idx.len()];
+        // Upper columns in order, so that each lower column's rows come sorted.
+        for c in 0..n {
+            for (k, &r) in upper.col_range(c).zip(upper.row_idx_of_col_raw(c)) {
+                lower_rows[count[r]] = c;
+                source[count[r]] = k;
+                count[r] += 1;
+            }
+        }
+        Self {
+            pattern: SymbolicSparseColMat::new_checked(n, n, lower_ptr, None, lower_rows),
+            values: vec![0.0; source.len()],
+            source,
+        }
+    }
+
+    /// The lower triangle of the matrix whose upper triangle holds `upper`.
+    fn fill(&mut self, upper: &[f64]) -> SparseColMatRef<'_, usize, f64> {
+        for (v, &k) in self.values.iter_mut().zip(&self.source) {
+            *v = upper[k];
+        }
+        SparseColMatRef::new(self.pattern.as_ref(), &self.values)
+    }
+}
+
 impl FaerCholesky {
     fn factorize(&mut self, h: SparseColMatRef<'_, usize, f64>) -> Result<(), NotPositiveDefinite> {
         let regularization = LltRegularization {
             dynamic_regularization_delta: 0.0,
             dynamic_regularization_epsilon: 0.0,
         };
+        let (h, side) = match &mut self.lower {
+            Some(lower) => (lower.fill(h.val()), Side::Lower),
+            None => (h, Side::Upper),
+        };
         self.symbolic
             .factorize_numeric_llt(
                 &mut self.values,
                 h,
-                Side::Upper,
+                side,
                 regularization,
                 self.par,
                 MemStack::new(&mut self.scratch),
@@ -303,6 +357,25 @@ impl FaerCholesky {
             }
         }
     }
+}
+
+/// `a · b` summed in eight independent lanes, which the compiler keeps in
+/// SIMD registers (a single running sum waits on each addition in turn).
+fn dot_in_lanes(a: &[f64], b: &[f64]) -> f64 {
+    let mut lanes = [0.0; 8];
+    let (a_chunks, b_chunks) = (a.chunks_exact(8), b.chunks_exact(8));
+    let tail: f64 = a_chunks
+        .remainder()
+        .iter()
+        .zip(b_chunks.remainder())
+        .map(|(x, y)| x * y)
+        .sum();
+    for (x, y) in a_chunks.zip(b_chunks) {
+        for k in 0..8 {
+            lanes[k] += x[k] * y[k];
+        }
+    }
+    lanes.iter().sum::<f64>() + tail
 }
 
 /// Solves L Lᵀ x = b in place for faer's supernodal factor L (unpermuted).
@@ -357,11 +430,7 @@ fn supernodal_solve(
             for (i, &l) in column[j + 1..size].iter().enumerate() {
                 xj -= l * x[start + j + 1 + i];
             }
-            xj -= column[size..]
-                .iter()
-                .zip(tmp.iter())
-                .map(|(l, t)| l * t)
-                .sum::<f64>();
+            xj -= dot_in_lanes(&column[size..], tmp);
             x[start + j] = xj / column[j];
         }
     }
@@ -447,7 +516,11 @@ impl SparseCholesky {
                 .unwrap_or(0),
             SymbolicCholeskyRaw::Simplicial(_) => 0,
         };
+        let lower = (matches!(symbolic.raw(), SymbolicCholeskyRaw::Supernodal(_))
+            && symbolic.perm().is_none())
+        .then(|| Box::new(LowerTriangle::new(pattern)));
         Ok(Factor::Faer(FaerCholesky {
+            lower,
             values: vec![0.0; symbolic.len_val()],
             work: vec![0.0; work],
             symbolic,
@@ -531,6 +604,43 @@ mod tests {
             col_ptr.push(row_idx.len());
         }
         SymbolicSparseColMat::new_checked(n, n, col_ptr, None, row_idx)
+    }
+
+    #[test]
+    fn dot_in_lanes_is_the_dot_product_for_every_length() {
+        for n in 0..40 {
+            let a: Vec<f64> = (0..n).map(|k| (k as f64 * 0.7).sin()).collect();
+            let b: Vec<f64> = (0..n).map(|k| 1.0 + k as f64 * 0.25).collect();
+            let plain: f64 = a.iter().zip(&b).map(|(x, y)| x * y).sum();
+            assert!(
+                (dot_in_lanes(&a, &b) - plain).abs() <= 1e-12 * (1.0 + plain.abs()),
+                "{n}"
+            );
+        }
+    }
+
+    #[test]
+    fn lower_triangle_holds_the_transpose_of_the_upper_one() {
+        let upper = pattern(6, &[(0, 3), (1, 3), (2, 5), (4, 5), (0, 5), (1, 2)]);
+        let values: Vec<f64> = (0..upper.row_idx().len()).map(|k| k as f64 + 0.5).collect();
+        let mut lower = LowerTriangle::new(upper.as_ref());
+        let h = lower.fill(&values);
+        let mut seen = 0;
+        for j in 0..6 {
+            let rows = h.symbolic().row_idx_of_col_raw(j);
+            assert!(rows.is_sorted(), "column {j}: {rows:?}");
+            for (&i, &v) in rows.iter().zip(h.val_of_col(j)) {
+                assert!(i >= j);
+                // Entry (i, j) of the lower triangle is (j, i) of the upper one.
+                let k = upper
+                    .col_range(i)
+                    .find(|&k| upper.row_idx()[k] == j)
+                    .unwrap();
+                assert_eq!(v, values[k]);
+                seen += 1;
+            }
+        }
+        assert_eq!(seen, values.len());
     }
 
     #[test]
