@@ -213,9 +213,28 @@ fn gaussian(sigma: f64) -> Gaussian {
     Gaussian { sigma }
 }
 
+/// Cone centres closer than this (m) overlap: a small cone's base is
+/// 0.228 m across, so two such cones cannot both stand, and a detector sees
+/// one object there. Some track files list a cone twice, 0.10–0.11 m apart
+/// (eufs_rand three times); the big orange pairs stand 0.28 m apart.
+pub const OVERLAP: f64 = 0.2;
+
+/// For every cone, whether an earlier cone in the file overlaps it (see
+/// [`OVERLAP`]): the detector reports only the first of such cones.
+pub fn hidden_by_overlap(cones: &[Cone]) -> Vec<bool> {
+    (0..cones.len())
+        .map(|i| {
+            cones[..i]
+                .iter()
+                .any(|c| (c.position - cones[i].position).norm() < OVERLAP)
+        })
+        .collect()
+}
+
 /// Simulates `config.laps` laps of `track` along `course`.
 pub fn simulate(track: &Track, course: &Course, config: &SimConfig) -> Simulation {
     let mut rng = StdRng::seed_from_u64(config.seed);
+    let hidden = hidden_by_overlap(&track.cones);
     let odo = &config.preset.odometry;
     let dt = 1.0 / odo.rate;
     let scan_every = (odo.rate / config.preset.sensor.rate).round().max(1.0) as usize;
@@ -257,8 +276,14 @@ pub fn simulate(track: &Track, course: &Course, config: &SimConfig) -> Simulatio
             vy: None,
         });
         if step.is_multiple_of(scan_every) {
-            let (cones, sources) =
-                detect(track, &pose, &config.preset.sensor, &mut tracker, &mut rng);
+            let (cones, sources) = detect(
+                track,
+                &hidden,
+                &pose,
+                &config.preset.sensor,
+                &mut tracker,
+                &mut rng,
+            );
             for (det, source) in sources.iter().enumerate() {
                 truth_associations.push(Association {
                     scan,
@@ -333,8 +358,12 @@ impl Tracker {
     }
 }
 
+/// One scan from `pose`. A cone `hidden` by an overlapping one draws its
+/// noise like any other (so that hiding it leaves every other detection's
+/// draws as they were) but is not reported.
 fn detect(
     track: &Track,
+    hidden: &[bool],
     pose: &SE2,
     sensor: &SensorModel,
     tracker: &mut Tracker,
@@ -427,6 +456,9 @@ fn detect(
         } else {
             color
         };
+        if matches!(source, Source::Cone(i) if hidden[i]) {
+            continue;
+        }
         detections.push(Detection {
             position: Vector2::new(r * b.cos(), r * b.sin()),
             range_bearing: Some((r, b)),
@@ -584,6 +616,47 @@ fn cone_surface(
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    fn cone_at(x: f64, y: f64) -> Cone {
+        Cone {
+            position: Vector2::new(x, y),
+            color: Color::Yellow,
+            covariance: nalgebra::Matrix2::zeros(),
+        }
+    }
+
+    #[test]
+    fn only_the_later_of_overlapping_cones_is_hidden() {
+        let cones = [
+            cone_at(0.0, 0.0),
+            cone_at(0.1, 0.0),
+            cone_at(5.0, 0.0),
+            cone_at(5.28, 0.0),
+        ];
+        // 0.28 m apart, like the big orange pairs: two cones.
+        assert_eq!(hidden_by_overlap(&cones), [false, true, false, false]);
+    }
+
+    #[test]
+    fn a_cone_listed_twice_is_detected_as_one() {
+        let (mut track, course) =
+            crate::trackgen::random_track(3, &crate::trackgen::TrackRules::default());
+        let original = track.cones[5].clone();
+        let twin = track.cones.len();
+        track.cones.push(Cone {
+            position: original.position + Vector2::new(0.1, 0.0),
+            ..original
+        });
+        let sim = simulate(&track, &course, &SimConfig::default());
+        let sources: Vec<usize> = sim
+            .truth_associations
+            .iter()
+            .filter_map(|a| a.landmark)
+            .collect();
+        assert!(sources.contains(&5), "the first of the pair is seen");
+        assert!(!sources.contains(&twin), "the second is not");
+        assert_eq!(sim.truth_map.len(), twin + 1, "the truth map keeps both");
+    }
 
     #[test]
     fn noise_of_any_sigma_can_be_drawn() {

@@ -31,6 +31,9 @@ enum Command {
     /// Write a synthetic benchmark graph (Manhattan world or sphere) in g2o format.
     Generate(generate::GenerateArgs),
     /// Simulate a Formula Student run: cone detections and odometry along a track.
+    ///
+    /// Cones a track file lists closer than 0.2 m apart would overlap; the
+    /// detector reports the first of them only (the truth map keeps both).
     FsSim(fs::SimArgs),
     /// Cone SLAM on a log: map, trajectory and associations.
     FsSlam(fs::SlamArgs),
