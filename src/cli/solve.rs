@@ -98,6 +98,12 @@ pub struct SolveArgs {
     /// (marquardt), 0 (levenberg, as g2o).
     #[arg(long)]
     lookahead_steps: Option<usize>,
+    /// Levenberg-Marquardt's line search: a step that lowers χ² by less than
+    /// a quarter of its model's prediction is shortened to where a parabola
+    /// puts χ²'s minimum, if that lowers χ² further. Default true
+    /// (marquardt), false (levenberg, as g2o).
+    #[arg(long)]
+    line_search: Option<bool>,
     /// Starting point.
     #[arg(long, value_enum, default_value = "auto")]
     init: InitName,
@@ -351,6 +357,7 @@ fn solve(a: SolveArgs) -> Result<(), String> {
             tau,
             nonmonotonic_steps: a.nonmonotonic_steps.unwrap_or(lm.nonmonotonic_steps),
             lookahead_steps: a.lookahead_steps.unwrap_or(lm.lookahead_steps),
+            line_search: a.line_search.unwrap_or(lm.line_search),
             ..lm
         },
         linear: LinearSolverConfig {

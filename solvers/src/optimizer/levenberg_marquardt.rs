@@ -156,6 +156,15 @@ impl Optimizer {
                         // becomes H and the gradient; if not, they still hold
                         // the last accepted point's.
                         trial_chi2 = self.linearize_trial(graph, &mut phases, true);
+                        if self.config.lm.line_search {
+                            trial_chi2 = self.shorten_poor_step(
+                                graph,
+                                chi2,
+                                trial_chi2,
+                                lambda,
+                                &mut phases,
+                            );
+                        }
                     }
                     // Decrease of χ² the damped linear model predicts, sᵀ(λDs − g),
                     // with g2o's 1e-3 guard against a zero prediction.
@@ -261,6 +270,62 @@ impl Optimizer {
         }
         termination
     }
+}
+
+impl Optimizer {
+    /// The line search of [`LevenbergMarquardtConfig::line_search`]: the
+    /// graph is at the trial point x + s, linearised, with χ² `trial`
+    /// (`chi2` at x). If the step lowered χ² by less than a quarter of what
+    /// its model predicted, moves to x + αs at the minimum of the parabola
+    /// through χ²(x), its slope along s and χ²(x + s), when that lowers χ²
+    /// further; the step is then αs. Returns the χ² of the point the graph
+    /// is left at (linearised there).
+    ///
+    /// [`LevenbergMarquardtConfig::line_search`]: crate::LevenbergMarquardtConfig::line_search
+    fn shorten_poor_step(
+        &mut self,
+        graph: &mut Graph,
+        chi2: f64,
+        trial: f64,
+        lambda: f64,
+        phases: &mut PhaseTimes,
+    ) -> f64 {
+        /// Gain ratio below which a step's model is poor (the trust-region
+        /// methods' usual 1/4).
+        const POOR: f64 = 0.25;
+        let slope = 2.0 * dot(&self.step, &self.gradient);
+        let predicted = lambda * weighted_square(&self.step, &self.damping) - slope / 2.0;
+        let gain = (chi2 - trial) / predicted;
+        // χ²(x + αs) ≈ χ² + slope·α + curvature·α².
+        let curvature = trial - chi2 - slope;
+        if !(gain > 0.0 && gain < POOR && curvature > 0.0) {
+            return trial;
+        }
+        let alpha = -slope / (2.0 * curvature);
+        if !(0.1..=0.9).contains(&alpha) {
+            return trial;
+        }
+        let t = Instant::now();
+        self.restore(graph);
+        self.step.iter_mut().for_each(|s| *s *= alpha);
+        self.apply_step(graph);
+        phases.update += since(t);
+        let shorter = self.linearize_trial(graph, phases, true);
+        if shorter < trial {
+            return shorter;
+        }
+        let t = Instant::now();
+        self.restore(graph);
+        self.step.iter_mut().for_each(|s| *s /= alpha);
+        self.apply_step(graph);
+        phases.update += since(t);
+        self.linearize_trial(graph, phases, true)
+    }
+}
+
+/// Σ dᵢ·sᵢ².
+fn weighted_square(s: &[f64], d: &[f64]) -> f64 {
+    s.iter().zip(d).map(|(s, d)| d * s * s).sum()
 }
 
 /// A step of the Gauss-Newton path LM followed: its statistics (as an
