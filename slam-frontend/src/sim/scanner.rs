@@ -1,0 +1,146 @@
+//! The scanner variant of a simulated run: the points a 3D scanner would
+//! return instead of cone detections.
+
+use super::*;
+
+/// Base radius and height of a big orange cone (m).
+const BIG_CONE: (f64, f64) = (0.142, 0.505);
+
+/// The same run seen by a scanner instead of a cone detector: every `cones`
+/// record becomes a `points` record holding the points the scanner would
+/// return from the same objects (the true cones' visible surfaces, a small
+/// blob per false positive), plus points on the vehicle's own nose and far
+/// beyond the cones, which the point front end must remove. The truth
+/// associations then refer to the clusters [`crate::points::extract`] finds
+/// with `points` (in its order), labelled by the object most of their points
+/// came from.
+pub fn point_clouds(
+    sim: &Simulation,
+    points: &crate::points::PointCloudConfig,
+    seed: u64,
+) -> Simulation {
+    let mut rng = StdRng::seed_from_u64(seed);
+    let noise = gaussian(0.01);
+    let truth_at: HashMap<u64, SE2> = sim.truth.iter().map(|p| (p.t.to_bits(), p.pose)).collect();
+    let mut sources = sim.truth_associations.iter().peekable();
+    let mut log = Vec::with_capacity(sim.log.len());
+    let mut truth_associations = Vec::new();
+    let mut scan = 0;
+    for record in &sim.log {
+        let Record::Cones { t, cones } = record else {
+            log.push(record.clone());
+            continue;
+        };
+        let pose = truth_at
+            .get(&t.to_bits())
+            .copied()
+            .unwrap_or(SE2::identity());
+        let inverse = pose.inverse();
+        let mut cloud: Vec<[f64; 3]> = Vec::new();
+        let mut origin: Vec<Option<usize>> = Vec::new();
+        for (det, d) in cones.iter().enumerate() {
+            let source = match sources.peek() {
+                Some(a) if a.scan == scan && a.det == det => {
+                    sources.next().and_then(|a| a.landmark)
+                }
+                _ => None,
+            };
+            match source.and_then(|i| sim.truth_map.get(i).map(|c| (i, c))) {
+                Some((i, cone)) => {
+                    let centre = inverse.transform_point(&cone.position);
+                    for p in cone_surface(&centre, cone.color, &mut rng, &noise) {
+                        cloud.push(p);
+                        origin.push(Some(i));
+                    }
+                }
+                None => {
+                    for _ in 0..4 {
+                        let p = d.position
+                            + Vector2::new(noise.sample(&mut rng), noise.sample(&mut rng)) * 4.0;
+                        cloud.push([p.x, p.y, 0.1]);
+                        origin.push(None);
+                    }
+                }
+            }
+        }
+        // The vehicle's own nose, and a wall far beyond the cones.
+        for _ in 0..8 {
+            cloud.push([
+                rng.random_range(-1.0..0.3),
+                rng.random_range(-0.5..0.5),
+                0.2,
+            ]);
+            origin.push(None);
+        }
+        let wall = rng.random_range(-1.5..1.5f64);
+        for k in 0..10 {
+            let (s, c) = (wall + 0.01 * k as f64).sin_cos();
+            cloud.push([30.0 * c, 30.0 * s, 0.5]);
+            origin.push(None);
+        }
+        for (det, cluster) in crate::points::extract(&cloud, points).iter().enumerate() {
+            let mut votes: HashMap<Option<usize>, usize> = HashMap::new();
+            for &i in &cluster.points {
+                *votes.entry(origin[i]).or_default() += 1;
+            }
+            let landmark = votes
+                .into_iter()
+                .max_by_key(|(o, n)| (*n, *o))
+                .and_then(|(o, _)| o);
+            truth_associations.push(Association {
+                scan,
+                det,
+                landmark,
+            });
+        }
+        log.push(Record::Points {
+            t: *t,
+            points: cloud,
+        });
+        scan += 1;
+    }
+    Simulation {
+        log,
+        truth: sim.truth.clone(),
+        truth_associations,
+        truth_map: sim.truth_map.clone(),
+    }
+}
+
+/// Points a scanner with 0.2° bearing and 1° elevation steps returns from
+/// the visible half of a cone standing at `centre` (vehicle frame).
+fn cone_surface(
+    centre: &Vector2<f64>,
+    color: Color,
+    rng: &mut StdRng,
+    noise: &Gaussian,
+) -> Vec<[f64; 3]> {
+    let (base, height) = if color == Color::BigOrange {
+        BIG_CONE
+    } else {
+        (crate::points::CONE_RADIUS, crate::points::CONE_HEIGHT)
+    };
+    let range = centre.norm().max(0.5);
+    let sight = centre / range;
+    let across = Vector2::new(-sight.y, sight.x);
+    let ring_step = (range * 1f64.to_radians()).max(0.04);
+    let lateral_step = range * 0.2f64.to_radians();
+    let mut out = Vec::new();
+    let mut h = 0.5 * ring_step;
+    while h < 0.9 * height {
+        let rho = base * (1.0 - h / height);
+        let mut u = -rho + rng.random_range(0.0..lateral_step.min(2.0 * rho));
+        while u <= rho {
+            let depth = (rho * rho - u * u).max(0.0).sqrt();
+            let p = centre - sight * depth + across * u;
+            out.push([
+                p.x + noise.sample(rng),
+                p.y + noise.sample(rng),
+                h + noise.sample(rng),
+            ]);
+            u += lateral_step;
+        }
+        h += ring_step;
+    }
+    out
+}
