@@ -166,13 +166,9 @@ impl Optimizer {
                             );
                         }
                     }
-                    // Decrease of χ² the damped linear model predicts, sᵀ(λDs − g),
-                    // with g2o's 1e-3 guard against a zero prediction.
-                    let predicted: f64 = (self.step.iter().zip(&self.gradient))
-                        .zip(&self.damping)
-                        .map(|((s, g), d)| s * (lambda * d * s - g))
-                        .sum::<f64>()
-                        + 1e-3;
+                    // The model's decrease, with g2o's 1e-3 guard against a
+                    // zero prediction.
+                    let predicted = self.model_decrease(lambda) + 1e-3;
                     let rho = steps.ratio(chi2, trial_chi2, predicted);
                     if solved && rho > 0.0 && trial_chi2.is_finite() {
                         let leaving_lowest = chi2 == steps.minimum;
@@ -273,6 +269,15 @@ impl Optimizer {
 }
 
 impl Optimizer {
+    /// Decrease of χ² the damped linear model predicts for the step s,
+    /// sᵀ(λDs − g).
+    fn model_decrease(&self, lambda: f64) -> f64 {
+        (self.step.iter().zip(&self.gradient))
+            .zip(&self.damping)
+            .map(|((s, g), d)| s * (lambda * d * s - g))
+            .sum()
+    }
+
     /// The line search of [`LevenbergMarquardtConfig::line_search`]: the
     /// graph is at the trial point x + s, linearised, with χ² `trial`
     /// (`chi2` at x). If the step lowered χ² by less than a quarter of what
@@ -294,8 +299,7 @@ impl Optimizer {
         /// methods' usual 1/4).
         const POOR: f64 = 0.25;
         let slope = 2.0 * dot(&self.step, &self.gradient);
-        let predicted = lambda * weighted_square(&self.step, &self.damping) - slope / 2.0;
-        let gain = (chi2 - trial) / predicted;
+        let gain = (chi2 - trial) / self.model_decrease(lambda);
         // χ²(x + αs) ≈ χ² + slope·α + curvature·α².
         let curvature = trial - chi2 - slope;
         if !(gain > 0.0 && gain < POOR && curvature > 0.0) {
@@ -321,11 +325,6 @@ impl Optimizer {
         phases.update += since(t);
         self.linearize_trial(graph, phases, true)
     }
-}
-
-/// Σ dᵢ·sᵢ².
-fn weighted_square(s: &[f64], d: &[f64]) -> f64 {
-    s.iter().zip(d).map(|(s, d)| d * s * s).sum()
 }
 
 /// A step of the Gauss-Newton path LM followed: its statistics (as an
