@@ -6,6 +6,7 @@
 use crate::SolveError;
 use crate::selected_inverse::{LowerFactor, SelectedInverse, Supernodes};
 use crate::simplicial::{SimplicialCholesky, SimplicialSymbolic};
+use crate::structure::group_by_key;
 use faer::dyn_stack::{MemBuffer, MemStack, StackReq};
 use faer::linalg::cholesky::llt::factor::{LltError, LltRegularization};
 use faer::sparse::linalg::SupernodalThreshold;
@@ -258,27 +259,19 @@ struct LowerTriangle {
 impl LowerTriangle {
     fn new(upper: SymbolicSparseColMatRef<'_, usize>) -> Self {
         let n = upper.ncols();
-        let row_idx = upper.row_idx();
-        let mut count = vec![0usize; n + 1];
-        for &r in row_idx {
-            count[r + 1] += 1;
-        }
-        for j in 0..n {
-            count[j + 1] += count[j];
-        }
-        let lower_ptr = count.clone();
-        let mut lower_rows = vec![0; row_idx.len()];
-        let mut source = vec![0; row_idx.len()];
-        // Upper columns in order, so that each lower column's rows come sorted.
-        for c in 0..n {
-            for (k, &r) in upper.col_range(c).zip(upper.row_idx_of_col_raw(c)) {
-                lower_rows[count[r]] = c;
-                source[count[r]] = k;
-                count[r] += 1;
-            }
-        }
+        // Entry (r, c) of the upper triangle is (c, r) of the lower one;
+        // grouped by r in upper column order, each lower column's rows
+        // come sorted. (H's dimension fits u32: `HessianStructure` checks.)
+        let pairs: Vec<(u32, (usize, usize))> = (0..n)
+            .flat_map(|c| {
+                let entries = upper.col_range(c).zip(upper.row_idx_of_col_raw(c));
+                entries.map(move |(k, &r)| (r as u32, (c, k)))
+            })
+            .collect();
+        let (col_ptr, entries) = group_by_key(n, &pairs);
+        let (rows, source): (Vec<usize>, Vec<usize>) = entries.into_iter().unzip();
         Self {
-            pattern: SymbolicSparseColMat::new_checked(n, n, lower_ptr, None, lower_rows),
+            pattern: SymbolicSparseColMat::new_checked(n, n, col_ptr, None, rows),
             values: vec![0.0; source.len()],
             source,
         }

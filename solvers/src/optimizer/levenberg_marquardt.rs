@@ -309,21 +309,23 @@ impl Optimizer {
         if !(0.1..=0.9).contains(&alpha) {
             return trial;
         }
-        let t = Instant::now();
-        self.restore(graph);
-        self.step.iter_mut().for_each(|s| *s *= alpha);
-        self.apply_step(graph);
-        phases.update += since(t);
+        self.rescale_step(graph, alpha, phases);
         let shorter = self.linearize_trial(graph, phases, true);
         if shorter < trial {
             return shorter;
         }
+        self.rescale_step(graph, 1.0 / alpha, phases);
+        self.linearize_trial(graph, phases, true)
+    }
+
+    /// Scales the step by `factor` and moves the graph from the saved
+    /// point by the scaled step.
+    fn rescale_step(&mut self, graph: &mut Graph, factor: f64, phases: &mut PhaseTimes) {
         let t = Instant::now();
         self.restore(graph);
-        self.step.iter_mut().for_each(|s| *s /= alpha);
+        self.step.iter_mut().for_each(|s| *s *= factor);
         self.apply_step(graph);
         phases.update += since(t);
-        self.linearize_trial(graph, phases, true)
     }
 }
 
