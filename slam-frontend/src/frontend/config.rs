@@ -57,7 +57,7 @@ pub struct FrontEndConfig {
     pub false_positives: f64,
     /// Match every detection again at the end of the run, from the
     /// optimised poses and map: along its tracker id's chain of sightings
-    /// with tracking association, alone with the other methods
+    /// with tracking association, scan by scan with the other methods
     /// ([`GraphSlam::finish`](super::GraphSlam::finish)).
     pub hindsight: bool,
     /// Sightings before a tentative landmark joins the map.

@@ -1,11 +1,19 @@
 //! Landmark bookkeeping of the graph front end: starting landmarks, each
 //! landmark's own EKF, and counting the misses that drop spurious ones.
 
+use super::optimise::{MERGE_RADIUS, pairs_within};
 use super::{GraphSlam, Landmark, Mode, window};
 use crate::log::Detection;
 use crate::sighting::{Sighting, ViewMargin, in_view, in_view_within};
 use cairn_core::SE2;
-use nalgebra::{Matrix2, Matrix3, SMatrix};
+use nalgebra::{Matrix2, Matrix3, SMatrix, Vector2};
+use std::collections::HashMap;
+
+/// The share of a cluster's scans that must see all its landmarks for them
+/// to stand for as many cones: pᵏ is 0.41 for three cones at the `hard`
+/// preset's detection probability 0.8 (0.64 for two), against the few
+/// scans where clutter completes a duplicate.
+const SEEN_WHOLE: f64 = 0.1;
 
 impl GraphSlam {
     /// Whether an unmatched detection starts a new landmark: no free live
@@ -133,6 +141,61 @@ impl GraphSlam {
         }
     }
 
+    /// At the end of the run, before the matching in hindsight, drops the
+    /// landmarks of a cluster that the scans do not show as that many cones.
+    /// A cluster (landmarks of compatible colours, each within
+    /// [`MERGE_RADIUS`] of another) of k cones is seen whole in about pᵏ of
+    /// the scans that see any of it (p the detection probability: half of
+    /// them for three cones at p = 0.8). A landmark that a later lap started
+    /// beside a big orange pair, and that scans then matched with either
+    /// cone of the pair, is seen with each, so it never merged into one
+    /// (`merge_duplicates`), but the three are seen together only where
+    /// clutter fills the third place. While a cluster is seen whole in fewer
+    /// than [`SEEN_WHOLE`] of its scans, its least seen landmark leaves the
+    /// map; the matching in hindsight then gives its detections to the rest.
+    pub(super) fn drop_surplus_landmarks(&mut self) {
+        let live = self.map_rows();
+        let points: Vec<(usize, Vector2<f64>)> =
+            live.iter().map(|&l| (l, self.landmarks[l].mean)).collect();
+        let mut cluster: HashMap<usize, usize> = live.iter().map(|&l| (l, l)).collect();
+        fn root(cluster: &mut HashMap<usize, usize>, mut l: usize) -> usize {
+            while cluster[&l] != l {
+                l = cluster[&l];
+            }
+            l
+        }
+        for (a, b) in pairs_within(&points, MERGE_RADIUS) {
+            let (ca, cb) = (
+                self.landmarks[a].sighting.color(),
+                self.landmarks[b].sighting.color(),
+            );
+            if ca.compatible(cb) {
+                let (ra, rb) = (root(&mut cluster, a), root(&mut cluster, b));
+                cluster.insert(ra.max(rb), ra.min(rb));
+            }
+        }
+        let mut members: HashMap<usize, Vec<usize>> = HashMap::new();
+        for &l in &live {
+            members.entry(root(&mut cluster, l)).or_default().push(l);
+        }
+        for landmarks in members.into_values().filter(|m| m.len() > 1) {
+            // Each scan's landmarks of the cluster.
+            let seen: Vec<(usize, usize)> = self
+                .detections
+                .iter()
+                .filter_map(|&(scan, _, l)| Some((scan, self.resolve(l?))))
+                .filter(|(_, l)| landmarks.contains(l))
+                .collect();
+            let sightings: Vec<(usize, u32)> = landmarks
+                .iter()
+                .map(|&l| (l, self.landmarks[l].sighting.seen))
+                .collect();
+            for l in surplus(&sightings, seen) {
+                self.landmarks[l].removed = true;
+            }
+        }
+    }
+
     /// Counts misses of landmarks well inside the field of view, removes
     /// those missed more often than seen, and tracks which left the view.
     pub(super) fn count_misses(&mut self, pose: &SE2, associated: &[bool], scan: usize) {
@@ -157,5 +220,78 @@ impl GraphSlam {
                 lm.removed = true;
             }
         }
+    }
+}
+
+/// The landmarks of one cluster, given as (landmark, times seen), that the
+/// scans do not show as separate cones, least seen first: while fewer than
+/// [`SEEN_WHOLE`] of the scans that saw any of the rest saw them all, the
+/// least seen goes. `seen` lists (scan, landmark) pairs.
+fn surplus(sightings: &[(usize, u32)], mut seen: Vec<(usize, usize)>) -> Vec<usize> {
+    let mut order = sightings.to_vec();
+    order.sort_unstable_by_key(|&(l, n)| (n, l));
+    seen.sort_unstable();
+    seen.dedup();
+    let mut dropped = Vec::new();
+    for &(weakest, _) in &order[..order.len().saturating_sub(1)] {
+        let left = sightings.len() - dropped.len();
+        let (mut scans, mut whole) = (0, 0);
+        for run in seen.chunk_by(|a, b| a.0 == b.0) {
+            scans += 1;
+            whole += usize::from(run.len() == left);
+        }
+        if whole as f64 >= SEEN_WHOLE * scans as f64 {
+            break;
+        }
+        dropped.push(weakest);
+        seen.retain(|&(_, l)| l != weakest);
+    }
+    dropped
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// (scan, landmark) for landmarks `a` and `b` seen in these scans.
+    fn scans(landmark: usize, scans: impl IntoIterator<Item = usize>) -> Vec<(usize, usize)> {
+        scans.into_iter().map(|s| (s, landmark)).collect()
+    }
+
+    #[test]
+    fn a_pair_seen_together_stays_two_cones() {
+        // Each cone of a pair seen in 8 of 10 scans, together in 6.
+        let mut seen = scans(1, [0, 1, 2, 3, 4, 5, 6, 7]);
+        seen.extend(scans(2, [2, 3, 4, 5, 6, 7, 8, 9]));
+        assert!(surplus(&[(1, 8), (2, 8)], seen).is_empty());
+    }
+
+    #[test]
+    fn a_third_landmark_beside_a_pair_goes_when_never_seen_with_both() {
+        // Landmark 9 takes either cone's detections in scans where that
+        // cone's own landmark missed it; all three are never seen at once.
+        let mut seen = scans(1, 0..20);
+        seen.extend(scans(2, (0..20).filter(|s| s % 3 != 0)));
+        seen.extend(scans(9, (0..20).filter(|s| s % 3 == 0)));
+        assert_eq!(surplus(&[(1, 20), (2, 13), (9, 7)], seen), vec![9]);
+    }
+
+    #[test]
+    fn a_third_cone_seen_with_the_pair_stays() {
+        // Three cones, each seen in 4 of 5 scans: all three in 2 of 5.
+        let mut seen = Vec::new();
+        for l in 0..3 {
+            seen.extend(scans(l, (0..50).filter(|s| s % 5 != l)));
+        }
+        assert!(surplus(&[(0, 40), (1, 40), (2, 40)], seen).is_empty());
+    }
+
+    #[test]
+    fn duplicates_of_one_cone_leave_one() {
+        // Three landmarks that take turns: never two in one scan.
+        let seen: Vec<(usize, usize)> = (0..30).map(|s| (s, s % 3)).collect();
+        let mut dropped = surplus(&[(0, 10), (1, 10), (2, 10)], seen);
+        dropped.sort_unstable();
+        assert_eq!(dropped, vec![0, 1]);
     }
 }

@@ -229,7 +229,7 @@ fn shares_a_scan(a: &[usize], b: &[usize]) -> bool {
 /// The pairs `(a, b)`, a < b, of the labelled points closer than `radius`,
 /// sorted: a sweep along x instead of comparing every pair (a thousand
 /// landmarks on a long track).
-fn pairs_within(points: &[(usize, Vector2<f64>)], radius: f64) -> Vec<(usize, usize)> {
+pub(super) fn pairs_within(points: &[(usize, Vector2<f64>)], radius: f64) -> Vec<(usize, usize)> {
     let mut by_x: Vec<&(usize, Vector2<f64>)> = points.iter().collect();
     by_x.sort_unstable_by(|a, b| a.1.x.total_cmp(&b.1.x));
     let mut pairs = Vec::new();
