@@ -2,8 +2,9 @@
 
 use cairn_slam::course::Course;
 use cairn_slam::estimator::EstimatorKind;
-use cairn_slam::frontend::FrontEndConfig;
+use cairn_slam::eval::Report;
 use cairn_slam::frontend::association::AssociationMethod;
+use cairn_slam::frontend::{FrontEndConfig, GraphSlam};
 use cairn_slam::run::run_and_score;
 use cairn_slam::sim::{Preset, SimConfig, simulate};
 use cairn_slam::trackgen::{TrackRules, random_track};
@@ -130,6 +131,29 @@ fn random_tracks_follow_the_rules() {
     }
 }
 
+/// A run of shared track `file` with `preset` noise `seed` under
+/// `method`: the track, the front end after it, and its score. None (after
+/// a note) without `../shared`.
+fn shared_run(
+    file: &str,
+    preset: Preset,
+    seed: u64,
+    method: AssociationMethod,
+) -> Option<(Track, GraphSlam, Report)> {
+    let track = Track::load(&tracks_dir()?.join(file)).unwrap();
+    let course = Course::from_track(&track).unwrap();
+    let config = SimConfig {
+        preset: preset.clone(),
+        seed,
+        ..SimConfig::default()
+    };
+    let sim = simulate(&track, &course, &config);
+    let frontend = FrontEndConfig::for_preset(&preset, method, EstimatorKind::Graph);
+    let (slam, report) = run_and_score(&sim, frontend);
+    println!("{file} seed {seed}: {report:?}");
+    Some((track, slam, report))
+}
+
 #[test]
 fn a_lap_that_ends_one_cone_off_among_clutter_closes_on_the_start_line() {
     // eufs_rand, `hard` seed 29, tracking association: the first lap ends
@@ -137,22 +161,14 @@ fn a_lap_that_ends_one_cone_off_among_clutter_closes_on_the_start_line() {
     // fit one spacing off the best, while a fit near the truth put two big
     // orange detections on the start line's cones; the loop closed 3.8 m
     // off and the run ended 22 m off (60.8% of detections matched right).
-    let Some(dir) = tracks_dir() else {
+    let Some((_, slam, report)) = shared_run(
+        "eufs_rand.csv",
+        Preset::hard(),
+        29,
+        AssociationMethod::Tracking,
+    ) else {
         return;
     };
-    let track = Track::load(&dir.join("eufs_rand.csv")).unwrap();
-    let course = Course::from_track(&track).unwrap();
-    let preset = Preset::hard();
-    let config = SimConfig {
-        preset: preset.clone(),
-        seed: 29,
-        ..SimConfig::default()
-    };
-    let sim = simulate(&track, &course, &config);
-    let frontend =
-        FrontEndConfig::for_preset(&preset, AssociationMethod::Tracking, EstimatorKind::Graph);
-    let (slam, report) = run_and_score(&sim, frontend);
-    println!("{report:?}");
     assert_eq!(slam.loop_closures(), 1);
     assert!(report.ate < 0.5, "{report:?}");
     assert!(report.association_accuracy > 0.98, "{report:?}");
@@ -165,25 +181,14 @@ fn a_landmark_a_later_lap_starts_beside_a_big_orange_pair_leaves_the_map() {
     // a landmark beside each pair, which scans then matched with either
     // cone, so it never merged; the map held 6 big orange cones for 4 (map
     // RMSE 0.107 m, big orange 0.21 m; 97.48% of detections matched right).
-    let Some(dir) = tracks_dir() else {
+    let Some((track, slam, report)) = shared_run(
+        "eufs_boa_constrictor.csv",
+        Preset::hard(),
+        0,
+        AssociationMethod::MaximumLikelihood,
+    ) else {
         return;
     };
-    let track = Track::load(&dir.join("eufs_boa_constrictor.csv")).unwrap();
-    let course = Course::from_track(&track).unwrap();
-    let preset = Preset::hard();
-    let config = SimConfig {
-        preset: preset.clone(),
-        seed: 0,
-        ..SimConfig::default()
-    };
-    let sim = simulate(&track, &course, &config);
-    let frontend = FrontEndConfig::for_preset(
-        &preset,
-        AssociationMethod::MaximumLikelihood,
-        EstimatorKind::Graph,
-    );
-    let (slam, report) = run_and_score(&sim, frontend);
-    println!("{report:?}");
     let truth: Vec<_> = track
         .cones
         .iter()
@@ -215,23 +220,13 @@ fn each_scan_is_matched_again_as_a_whole() {
     // the big orange pairs (0.28 m apart, range noise 0.15 m at 10 m) were
     // often taken the wrong way round: 99.54% of detections right. The
     // scan's most likely assignment weighs both detections of a pair.
-    let Some(dir) = tracks_dir() else {
+    let Some((_, _, report)) = shared_run(
+        "eufs_boa_constrictor.csv",
+        Preset::standard(),
+        1,
+        AssociationMethod::MaximumLikelihood,
+    ) else {
         return;
     };
-    let track = Track::load(&dir.join("eufs_boa_constrictor.csv")).unwrap();
-    let course = Course::from_track(&track).unwrap();
-    let preset = Preset::standard();
-    let config = SimConfig {
-        preset: preset.clone(),
-        seed: 1,
-        ..SimConfig::default()
-    };
-    let sim = simulate(&track, &course, &config);
-    let frontend = FrontEndConfig::for_preset(
-        &preset,
-        AssociationMethod::MaximumLikelihood,
-        EstimatorKind::Graph,
-    );
-    let (_, report) = run_and_score(&sim, frontend);
     assert!(report.association_accuracy > 0.997, "{report:?}");
 }
