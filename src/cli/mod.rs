@@ -4,6 +4,7 @@ mod check;
 mod corrupt;
 mod fs;
 mod fs_report;
+mod fs_targets;
 mod generate;
 mod solve;
 mod study;
