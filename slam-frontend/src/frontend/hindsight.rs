@@ -223,18 +223,52 @@ fn scan_assignments(
     let mut paths = vec![Vec::new(); chains.len()];
     for links in by_scan {
         let scan: Vec<&Link> = links.iter().map(|&(c, t)| &chains[c][t]).collect();
-        for (&(c, _), l) in links.iter().zip(most_likely_assignment(&scan)) {
-            paths[c] = vec![l];
+        for group in sharing_landmarks(&scan) {
+            let members: Vec<&Link> = group.iter().map(|&i| scan[i]).collect();
+            for (&i, l) in group.iter().zip(most_likely_assignment(&members)) {
+                paths[links[i].0] = vec![l];
+            }
         }
     }
     paths
 }
 
+/// The scan's detections in groups that share no candidate landmark with
+/// one another: each group is assigned on its own (most are one detection).
+fn sharing_landmarks(scan: &[&Link]) -> Vec<Vec<usize>> {
+    let mut parent: Vec<usize> = (0..scan.len()).collect();
+    fn root(parent: &mut [usize], mut i: usize) -> usize {
+        while parent[i] != i {
+            parent[i] = parent[parent[i]];
+            i = parent[i];
+        }
+        i
+    }
+    let mut first_to_claim: HashMap<usize, usize> = HashMap::new();
+    for (i, link) in scan.iter().enumerate() {
+        for &(l, _) in &link.landmarks {
+            let j = *first_to_claim.entry(l).or_insert(i);
+            let (a, b) = (root(&mut parent, i), root(&mut parent, j));
+            parent[a.max(b)] = a.min(b);
+        }
+    }
+    let mut groups: Vec<Vec<usize>> = Vec::new();
+    let mut group_of = vec![usize::MAX; scan.len()];
+    for i in 0..scan.len() {
+        let r = root(&mut parent, i);
+        if group_of[r] == usize::MAX {
+            group_of[r] = groups.len();
+            groups.push(Vec::new());
+        }
+        groups[group_of[r]].push(i);
+    }
+    groups
+}
+
 /// The landmark (or clutter) for each of one scan's detections that
 /// minimises the summed cost, no landmark taken twice: the Hungarian
-/// method on costs rounded to 10⁻⁶, far below what tells cones apart. A
-/// scan of more than [`MAX_JOINT`] detections takes the cheapest claims
-/// first instead.
+/// method on costs rounded to 10⁻⁶, far below what tells cones apart. More
+/// than [`MAX_JOINT`] detections take the cheapest claims first instead.
 fn most_likely_assignment(scan: &[&Link]) -> Vec<Option<usize>> {
     if scan.len() > MAX_JOINT {
         return cheapest_claims_first(scan);
@@ -268,8 +302,9 @@ fn most_likely_assignment(scan: &[&Link]) -> Vec<Option<usize>> {
         .collect()
 }
 
-/// Scans larger than this (no detector reports so many cones at once) are
-/// assigned cheapest claim first, in time linear in their pairs.
+/// Groups of detections that share candidates larger than this (cones
+/// crowd a few metres at most; this bounds the cubic time) are assigned
+/// cheapest claim first.
 const MAX_JOINT: usize = 1000;
 
 /// Each detection's cheapest option among the landmarks still free and
@@ -462,6 +497,22 @@ mod tests {
     }
 
     #[test]
+    fn detections_that_share_no_candidate_are_assigned_apart() {
+        let links = [
+            link(0, &[(1, 0.0), (2, 1.0)]),
+            link(0, &[(5, 0.0)]),
+            link(0, &[(2, 0.5), (3, 9.0)]),
+            link(0, &[]),
+            link(0, &[(3, 1.0)]),
+        ];
+        let scan: Vec<&Link> = links.iter().collect();
+        assert_eq!(
+            sharing_landmarks(&scan),
+            vec![vec![0, 2, 4], vec![1], vec![3]]
+        );
+    }
+
+    #[test]
     fn a_scan_is_assigned_as_a_whole() {
         // Cheapest claim first, 0 takes landmark 1 and 1 is left with
         // clutter (8.0): 8.0 in all; together 1.5.
@@ -497,25 +548,32 @@ mod tests {
         #[test]
         fn the_scan_assignment_is_the_least_total_cost(
             costs in proptest::collection::vec(
-                proptest::collection::vec(proptest::option::of(-10.0f64..20.0), 4),
-                1..6,
+                proptest::collection::vec(proptest::option::weighted(0.3, -10.0f64..20.0), 8),
+                1..7,
             ),
         ) {
-            let links: Vec<Link> = costs
+            let chains: Vec<Vec<Link>> = costs
                 .iter()
                 .map(|row| {
                     let pairs: Vec<(usize, f64)> =
                         row.iter().enumerate().filter_map(|(l, c)| c.map(|c| (l, c))).collect();
-                    link(0, &pairs)
+                    vec![link(0, &pairs)]
                 })
                 .collect();
-            let scan: Vec<&Link> = links.iter().collect();
+            let scan: Vec<&Link> = chains.iter().map(|c| &c[0]).collect();
+            let least = least_total(&scan);
             let chosen = most_likely_assignment(&scan);
             proptest::prop_assert!(landmarks_taken_once(&chosen).is_some());
             let cost = total(&scan, &chosen);
             proptest::prop_assert!(cost.is_finite());
-            proptest::prop_assert!((cost - least_total(&scan)).abs() < 1e-5);
+            proptest::prop_assert!((cost - least).abs() < 1e-5);
             proptest::prop_assert!(cost <= total(&scan, &cheapest_claims_first(&scan)) + 1e-5);
+            // Group by group, as the scans are assigned, the same least total.
+            let by_scan = vec![(0..chains.len()).map(|c| (c, 0)).collect()];
+            let grouped: Vec<Option<usize>> =
+                scan_assignments(&chains, &by_scan).into_iter().map(|p| p[0]).collect();
+            proptest::prop_assert!(landmarks_taken_once(&grouped).is_some());
+            proptest::prop_assert!((total(&scan, &grouped) - least).abs() < 1e-5);
         }
     }
 
