@@ -73,6 +73,8 @@ where
         lo = Vector2::zeros();
         hi = Vector2::repeat(1.0);
     }
+    // A band above the drawing for the legend, so it covers no cone.
+    hi.y += 0.15 * (hi.y - lo.y).max(hi.x - lo.x);
     // Equal scales on both axes: widen the narrower range.
     let (w, h) = (hi.x - lo.x, hi.y - lo.y);
     let half = 0.5 * (w.max(h * 1.2)) + 2.0;
@@ -110,25 +112,34 @@ where
             .label("estimated trajectory")
             .legend(|(x, y)| PathElement::new([(x, y), (x + 20, y)], RED));
     }
-    chart.draw_series(plot.truth.iter().map(|c| {
+    let grey = RGBColor(90, 90, 90);
+    let truth = chart.draw_series(plot.truth.iter().map(|c| {
         Circle::new(
             (c.position.x, c.position.y),
             5,
             rgb(c.color).stroke_width(1),
         )
     }))?;
-    chart.draw_series(
+    if !plot.truth.is_empty() {
+        truth
+            .label("true cone")
+            .legend(move |(x, y)| Circle::new((x + 10, y), 5, grey.stroke_width(1)));
+    }
+    let map = chart.draw_series(
         plot.map
             .iter()
             .map(|c| Circle::new((c.position.x, c.position.y), 2, rgb(c.color).filled())),
     )?;
-    if !plot.true_path.is_empty() || !plot.path.is_empty() {
-        chart
-            .configure_series_labels()
-            .background_style(WHITE.mix(0.8))
-            .border_style(BLACK)
-            .draw()?;
+    if !plot.map.is_empty() {
+        map.label("mapped cone")
+            .legend(move |(x, y)| Circle::new((x + 10, y), 2, grey.filled()));
     }
+    chart
+        .configure_series_labels()
+        .position(SeriesLabelPosition::UpperLeft)
+        .background_style(WHITE.mix(0.8))
+        .border_style(BLACK)
+        .draw()?;
     area.present()?;
     Ok(())
 }
