@@ -22,6 +22,7 @@
 //! ```
 
 pub mod diagnostics;
+pub mod disjoint;
 pub mod edge;
 pub mod edges;
 pub mod factor;
@@ -35,6 +36,7 @@ pub mod topology;
 pub mod values;
 pub mod variable;
 
+pub use disjoint::DisjointSets;
 pub use edge::{BinaryEdge, Linearized, UnaryEdge};
 pub use edges::{EdgePriorSE2, EdgeSE2, EdgeSE2XY, EdgeSE3};
 pub use factor::FactorGroup;

@@ -1,5 +1,6 @@
 //! Connected components, the automatic gauge and spanning-tree initialisation.
 
+use crate::disjoint::DisjointSets;
 use crate::graph::{Graph, VertexId};
 use std::collections::VecDeque;
 
@@ -11,14 +12,6 @@ pub struct Components {
     pub label: Vec<usize>,
     /// Number of components.
     pub count: usize,
-}
-
-fn find(parent: &mut [usize], mut x: usize) -> usize {
-    while parent[x] != x {
-        parent[x] = parent[parent[x]];
-        x = parent[x];
-    }
-    x
 }
 
 /// Edges incident to each vertex, as (group, edge, position of the vertex in the edge).
@@ -66,30 +59,25 @@ impl Adjacency {
 impl Graph {
     /// The connected components (edges of any arity join their vertices).
     pub fn components(&self) -> Components {
-        let n = self.num_vertices();
-        let mut parent: Vec<usize> = (0..n).collect();
+        let mut sets = DisjointSets::new(self.num_vertices());
         for g in self.factor_groups() {
             for i in 0..g.len() {
-                let vs = g.vertices(i);
-                for w in vs.windows(2) {
-                    let (a, b) = (find(&mut parent, w[0]), find(&mut parent, w[1]));
-                    if a != b {
-                        parent[a.max(b)] = a.min(b);
-                    }
+                for w in g.vertices(i).windows(2) {
+                    sets.union(w[0], w[1]);
                 }
             }
         }
-        let mut label = vec![usize::MAX; n];
-        let mut count = 0;
-        for v in 0..n {
-            let r = find(&mut parent, v);
-            if label[r] == usize::MAX {
-                label[r] = count;
-                count += 1;
+        let groups = sets.groups();
+        let mut label = vec![0; self.num_vertices()];
+        for (c, group) in groups.iter().enumerate() {
+            for &v in group {
+                label[v] = c;
             }
-            label[v] = label[r];
         }
-        Components { label, count }
+        Components {
+            label,
+            count: groups.len(),
+        }
     }
 
     /// The vertices to hold fixed so that every component has a gauge: for each

@@ -13,7 +13,7 @@ use crate::frontend::{Mode, MotionModel, Timing};
 use crate::log::{Detection, Record};
 use crate::motion::{MotionNoise, Odometry};
 use crate::track::Cone;
-use cairn_core::SE2;
+use cairn_core::{DisjointSets, SE2};
 use nalgebra::{DMatrix, DVector, Matrix2, Matrix3, Vector2, Vector3};
 
 /// Settings of the point-cloud front end.
@@ -89,15 +89,7 @@ pub fn extract(cloud: &[[f64; 3]], config: &PointCloudConfig) -> Vec<Cluster> {
                 && x.hypot(y) <= config.far
         })
         .collect();
-    // Union-find over the kept points.
-    let mut parent: Vec<usize> = (0..kept.len()).collect();
-    fn root(parent: &mut [usize], mut i: usize) -> usize {
-        while parent[i] != i {
-            parent[i] = parent[parent[i]];
-            i = parent[i];
-        }
-        i
-    }
+    let mut sets = DisjointSets::new(kept.len());
     let polar: Vec<(f64, f64)> = kept
         .iter()
         .map(|&i| {
@@ -115,18 +107,14 @@ pub fn extract(cloud: &[[f64; 3]], config: &PointCloudConfig) -> Vec<Cluster> {
             let beside = (polar[a].1 - polar[b].1).abs() < config.angular_gap
                 && (polar[a].0 - polar[b].0).abs() < config.cluster_distance;
             if near || beside {
-                let (ra, rb) = (root(&mut parent, a), root(&mut parent, b));
-                parent[ra.max(rb)] = ra.min(rb);
+                sets.union(a, b);
             }
         }
     }
-    let mut groups: Vec<Vec<usize>> = vec![Vec::new(); kept.len()];
-    for (a, &point) in kept.iter().enumerate() {
-        let r = root(&mut parent, a);
-        groups[r].push(point);
-    }
-    let mut clusters: Vec<Cluster> = groups
+    let mut clusters: Vec<Cluster> = sets
+        .groups()
         .into_iter()
+        .map(|members| members.into_iter().map(|a| kept[a]).collect::<Vec<usize>>())
         .filter(|g| g.len() >= config.min_points)
         .filter_map(|points| {
             let n = points.len() as f64;

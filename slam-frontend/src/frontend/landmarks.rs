@@ -5,9 +5,8 @@ use super::optimise::{MERGE_RADIUS, pairs_within};
 use super::{GraphSlam, Landmark, Mode, window};
 use crate::log::Detection;
 use crate::sighting::{Sighting, ViewMargin, in_view, in_view_within};
-use cairn_core::SE2;
+use cairn_core::{DisjointSets, SE2};
 use nalgebra::{Matrix2, Matrix3, SMatrix, Vector2};
-use std::collections::HashMap;
 
 /// The share of a cluster's scans that must see all its landmarks for them
 /// to stand for as many cones: pᵏ is 0.41 for three cones at the `hard`
@@ -155,30 +154,27 @@ impl GraphSlam {
     /// map; the matching in hindsight then gives its detections to the rest.
     pub(super) fn drop_surplus_landmarks(&mut self) {
         let live = self.map_rows();
-        let points: Vec<(usize, Vector2<f64>)> =
-            live.iter().map(|&l| (l, self.landmarks[l].mean)).collect();
-        let mut cluster: HashMap<usize, usize> = live.iter().map(|&l| (l, l)).collect();
-        fn root(cluster: &mut HashMap<usize, usize>, mut l: usize) -> usize {
-            while cluster[&l] != l {
-                l = cluster[&l];
-            }
-            l
-        }
+        // Labelled by their place in `live`.
+        let points: Vec<(usize, Vector2<f64>)> = live
+            .iter()
+            .enumerate()
+            .map(|(k, &l)| (k, self.landmarks[l].mean))
+            .collect();
+        let mut sets = DisjointSets::new(live.len());
         for (a, b) in pairs_within(&points, MERGE_RADIUS) {
             let (ca, cb) = (
-                self.landmarks[a].sighting.color(),
-                self.landmarks[b].sighting.color(),
+                self.landmarks[live[a]].sighting.color(),
+                self.landmarks[live[b]].sighting.color(),
             );
             if ca.compatible(cb) {
-                let (ra, rb) = (root(&mut cluster, a), root(&mut cluster, b));
-                cluster.insert(ra.max(rb), ra.min(rb));
+                sets.union(a, b);
             }
         }
-        let mut members: HashMap<usize, Vec<usize>> = HashMap::new();
-        for &l in &live {
-            members.entry(root(&mut cluster, l)).or_default().push(l);
-        }
-        for landmarks in members.into_values().filter(|m| m.len() > 1) {
+        let members = sets
+            .groups()
+            .into_iter()
+            .map(|group| group.into_iter().map(|k| live[k]).collect::<Vec<usize>>());
+        for landmarks in members.filter(|m| m.len() > 1) {
             // Each scan's landmarks of the cluster.
             let seen: Vec<(usize, usize)> = self
                 .detections

@@ -2,6 +2,7 @@
 //! assignment of landmarks (or clutter) to its detections.
 
 use super::Link;
+use cairn_core::DisjointSets;
 use pathfinding::prelude::{Matrix, kuhn_munkres_min};
 use std::collections::HashMap;
 
@@ -30,33 +31,14 @@ pub(super) fn assignments(
 /// The scan's detections in groups that share no candidate landmark with
 /// one another: each group is assigned on its own (most are one detection).
 fn sharing_landmarks(scan: &[&Link]) -> Vec<Vec<usize>> {
-    let mut parent: Vec<usize> = (0..scan.len()).collect();
-    fn root(parent: &mut [usize], mut i: usize) -> usize {
-        while parent[i] != i {
-            parent[i] = parent[parent[i]];
-            i = parent[i];
-        }
-        i
-    }
+    let mut sets = DisjointSets::new(scan.len());
     let mut first_to_claim: HashMap<usize, usize> = HashMap::new();
     for (i, link) in scan.iter().enumerate() {
         for &(l, _) in &link.landmarks {
-            let j = *first_to_claim.entry(l).or_insert(i);
-            let (a, b) = (root(&mut parent, i), root(&mut parent, j));
-            parent[a.max(b)] = a.min(b);
+            sets.union(i, *first_to_claim.entry(l).or_insert(i));
         }
     }
-    let mut groups: Vec<Vec<usize>> = Vec::new();
-    let mut group_of = vec![usize::MAX; scan.len()];
-    for i in 0..scan.len() {
-        let r = root(&mut parent, i);
-        if group_of[r] == usize::MAX {
-            group_of[r] = groups.len();
-            groups.push(Vec::new());
-        }
-        groups[group_of[r]].push(i);
-    }
-    groups
+    sets.groups()
 }
 
 /// The landmark (or clutter) for each of one scan's detections that
