@@ -68,6 +68,30 @@ impl SE3 {
         self.t + self.q * p
     }
 
+    /// The exponential map of the Lie algebra se(3): the pose reached by moving
+    /// along the screw (ρ, ω) for unit time, with ω a rotation vector. The
+    /// rotation is exp(ω) and the translation V(ω)·ρ, where
+    /// V = I + (1 − cos θ)/θ²·\[ω\]× + (θ − sin θ)/θ³·\[ω\]×², θ = |ω|.
+    pub fn exp(rho: &Vector3<f64>, omega: &Vector3<f64>) -> SE3 {
+        let theta2 = omega.norm_squared();
+        // Taylor series below θ = 1e-4, where the closed forms lose digits.
+        let (a, b) = if theta2 < 1e-8 {
+            (0.5 - theta2 / 24.0, 1.0 / 6.0 - theta2 / 120.0)
+        } else {
+            let theta = theta2.sqrt();
+            (
+                (1.0 - theta.cos()) / theta2,
+                (theta - theta.sin()) / (theta2 * theta),
+            )
+        };
+        let w = skew(omega);
+        let v = Matrix3::identity() + w * a + w * w * b;
+        SE3 {
+            t: v * rho,
+            q: UnitQuaternion::from_scaled_axis(*omega),
+        }
+    }
+
     /// g2o's `toVectorMQT`: (t, qx, qy, qz) with the quaternion's sign chosen so
     /// that qw ≥ 0. The rotation part is ≈ θ/2 · axis, not the log map.
     pub fn to_mqt(&self) -> Vector6<f64> {

@@ -169,17 +169,76 @@ fn se3_mqt_round_trip_and_canonical_sign() {
 }
 
 #[test]
-fn se3_oplus_right_multiplies_like_g2o() {
+fn se3_oplus_right_multiplies_and_differs_from_g2o_only_at_second_order() {
     let mut rng = StdRng::seed_from_u64(15);
     for _ in 0..200 {
         let x = se3(&mut rng);
-        let d = Vector6::new(0.1, -0.2, 0.3, 0.05, -0.02, 0.01);
-        let expected = x.compose(&SE3::from_mqt(&d));
-        assert!(x.oplus(&d).distance(&expected) < 1e-12);
+        let d = Vector6::from_fn(|_, _| rng.random_range(-1.0..1.0));
+        for s in [1e-2, 1e-3, 1e-4] {
+            let ds = d * s;
+            // The increment acts on the right: x ⊕ d = x · (ε ⊕ d).
+            let inc = SE3::identity().oplus(&ds);
+            assert!(x.oplus(&ds).distance(&x.compose(&inc)) < 1e-9);
+            // g2o's increment (t, (√(1−|q|²), q)) differs by at most
+            // |q|·|t| ≤ |d|²/2 in translation and O(|q|³) in rotation.
+            let g2o = x.compose(&SE3::from_mqt(&ds));
+            assert!(x.oplus(&ds).distance(&g2o) <= 0.5 * ds.norm_squared() + 1e-12);
+        }
     }
-    // A compact quaternion of norm above one gives no rotation, as in g2o.
-    let x = SE3::identity().oplus(&Vector6::new(1.0, 0.0, 0.0, 0.9, 0.9, 0.0));
-    assert!(x.q.angle() < 1e-15 && x.t.x == 1.0);
+}
+
+#[test]
+fn se3_oplus_turns_a_compact_quaternion_above_unit_norm_into_a_rotation() {
+    // g2o's form names no rotation here and drops it; the exponential turns
+    // by twice the vector's norm about its axis.
+    let v = Vector3::new(0.9, 0.9, 0.0);
+    let x = SE3::identity().oplus(&Vector6::new(1.0, 0.0, 0.0, v.x, v.y, v.z));
+    assert!((x.q.angle() - 2.0 * v.norm()).abs() < 1e-12);
+    let axis = x.q.axis().map(|a| a.into_inner()).unwrap_or_default();
+    assert!((axis - v.normalize()).norm() < 1e-12);
+}
+
+#[test]
+fn se3_exp_is_a_one_parameter_subgroup() {
+    let mut rng = StdRng::seed_from_u64(17);
+    let mut xi = || Vector6::from_fn(|_, _| rng.random_range(-1.0..1.0));
+    // Random screws, and tiny ones whose doubled angle crosses the Taylor
+    // series' threshold (θ = 1e-4), so the two branches must agree.
+    let screws: Vec<Vector6<f64>> = (0..200)
+        .map(|i| {
+            let v = xi();
+            if i % 2 == 0 {
+                v
+            } else {
+                v.normalize() * 0.7e-4
+            }
+        })
+        .collect();
+    let exp =
+        |v: &Vector6<f64>| SE3::exp(&v.fixed_rows::<3>(0).into(), &v.fixed_rows::<3>(3).into());
+    for v in &screws {
+        for (s, t) in [(1.0, 1.0), (0.3, -1.2), (2.0, 0.5)] {
+            let product = exp(&(v * s)).compose(&exp(&(v * t)));
+            assert!(product.distance(&exp(&(v * (s + t)))) < 1e-12);
+        }
+        // Pure translations and pure rotations.
+        let (rho, omega) = (
+            v.fixed_rows::<3>(0).into_owned(),
+            v.fixed_rows::<3>(3).into_owned(),
+        );
+        let shift = SE3::exp(&rho, &Vector3::zeros());
+        assert!(shift.distance(&SE3::new(rho, UnitQuaternion::identity())) < 1e-15);
+        let turn = SE3::exp(&Vector3::zeros(), &omega);
+        assert!(
+            turn.distance(&SE3::new(
+                Vector3::zeros(),
+                UnitQuaternion::from_scaled_axis(omega)
+            )) < 1e-15
+        );
+        // A screw moves along its own axis: the rotation axis is fixed by it.
+        let along = SE3::exp(&omega, &omega);
+        assert!((along.t - omega).norm() < 1e-12);
+    }
 }
 
 #[test]

@@ -47,7 +47,8 @@ pub enum Damping {
     Marquardt,
     /// Levenberg's, as g2o: H + λI, first λ = `tau × max(diag H)`. With g2o's
     /// τ (1e-5, [`LevenbergMarquardtConfig::g2o`]) it reproduces g2o's
-    /// iterates exactly, including where one λ sized by the stiffest unknown
+    /// iterates (exactly on SE2 graphs; on SE3 ones up to the form of the
+    /// update, see `SE3`'s `Variable::oplus`), including where one λ sized by the stiffest unknown
     /// holds the others back for a hundred iterations (city10000,
     /// ais2klinik, M3500a and manhattan stall at 10–500× the optimum's χ²).
     Levenberg,
@@ -159,7 +160,7 @@ impl Default for LevenbergMarquardtConfig {
 
 impl LevenbergMarquardtConfig {
     /// g2o's damping and τ, monotone, without the look-ahead or the line
-    /// search: the same iterates as g2o's.
+    /// search: the same iterates as g2o's (see [`Damping::Levenberg`]).
     pub fn g2o() -> Self {
         Self {
             damping: Damping::Levenberg,

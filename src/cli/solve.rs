@@ -26,7 +26,7 @@ enum DampingName {
     /// H + λ·diag(H), first λ = τ (Marquardt's scaling, as Ceres).
     Marquardt,
     /// H + λI, first λ = τ·max(diag H), as g2o (with the default τ, g2o's
-    /// iterates exactly). Better where H is singular.
+    /// iterates; on SE3 graphs up to the form of the update). Better where H is singular.
     Levenberg,
 }
 
