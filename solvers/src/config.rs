@@ -119,20 +119,14 @@ pub struct LevenbergMarquardtConfig {
     /// lowers χ² further (one more linearisation). Default true; false (as
     /// g2o) keeps every accepted step whole.
     ///
-    /// From a file's own vertices the first Gauss-Newton steps can
-    /// overshoot: sphere2500's first step lowers χ² from 2.55·10⁶ to
-    /// 2.17·10⁶, 0.54 of it to 1.11·10⁶, and LM then needs 6 iterations
-    /// instead of 10 (χ² 727.14967 either way). Of the other 35 files in
-    /// `../shared/datasets`, 28 end at the same χ² in as many iterations;
-    /// on the poor starts the path changes: lower χ² on
-    /// sphere_bignoise_vertex3 (743863 against 760708, 67 iterations
-    /// against 71), cubicle (repaired), MIT, smallGrid3D and M3500c, higher
-    /// on M3500b (8509 against 8179, still below every peer's) and torus3D
-    /// (19973.63 against 19973.59, 37 iterations against 33). On 51
-    /// generated graphs (`cairn generate`: Manhattan worlds of 1,100–3,500
-    /// poses with 0.02–0.12 rad rotation noise, spheres of 400–2,900 poses
-    /// with 0.05–0.15 rad) it ended lower on 20, higher on 4 and the same
-    /// (to 1e-6) on 27, in 23% fewer iterations (1,909 against 2,483).
+    /// From poor starts, whole steps can overshoot. On 25 generated spheres
+    /// (`cairn generate sphere`, 400–2,900 poses with 0.05–0.15 rad rotation
+    /// noise, from their odometry) it ended lower on 15, higher on 2 and the
+    /// same (to 1e-6) on 8, in 4% fewer iterations (1,795 against 1,871); a
+    /// 400-pose sphere with 0.08 rad reaches 2288 in 13 iterations instead
+    /// of 3.7·10⁷ after 100. Of the 36 files in `../shared/datasets`, 33
+    /// end where they do without it; M3500c takes 55 iterations instead of
+    /// 57, M3500b 36 instead of 37 (at 8509 against 8179).
     #[serde(default = "default_line_search")]
     pub line_search: bool,
 }
