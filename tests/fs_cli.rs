@@ -349,3 +349,27 @@ fn the_report_runs_the_seeds_it_is_given() {
     let tables = |r: &str| r[r.find("## Per track").unwrap()..].to_string();
     assert_ne!(tables(&first), tables(&later));
 }
+
+#[test]
+fn a_simulation_with_a_noisier_detector_says_how_to_map_it() {
+    // The log does not carry the detector's noise, and fs-slam's gates
+    // assume `standard` unless told: run on a `hard` log they reject most
+    // far detections.
+    for (preset, hint) in [("hard", true), ("standard", false)] {
+        let dir = temp_dir(&format!("hint-{preset}"));
+        let o = cairn(&[
+            "fs-sim",
+            "--seed",
+            "2",
+            "--laps",
+            "0.1",
+            "--preset",
+            preset,
+            "-o",
+            s(&dir),
+        ]);
+        let stderr = String::from_utf8_lossy(&o.stderr);
+        assert!(o.status.success(), "{stderr}");
+        assert_eq!(stderr.contains("--noise hard"), hint, "{stderr}");
+    }
+}

@@ -250,6 +250,13 @@ pub fn run_sim(a: SimArgs) -> Result<(), String> {
         sim.truth_associations.len(),
         a.out.display()
     );
+    if a.preset != "standard" {
+        // The log does not say how noisy its detector is (FORMAT.md).
+        eprintln!(
+            "run fs-slam on it with `--noise {}`: its gates assume the detector's noise",
+            a.preset
+        );
+    }
     Ok(())
 }
 
