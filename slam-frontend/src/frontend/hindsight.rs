@@ -26,6 +26,7 @@
 //! 99.49 → 99.68%; `hard` 98.32–98.44 → 98.46–98.60%).
 
 mod scan;
+mod unmatched;
 
 use super::GraphSlam;
 use super::Observation;
@@ -76,7 +77,9 @@ impl GraphSlam {
 
     /// Matches every detection of `scans` again from the poses and map as
     /// they stand, chain by chain, one landmark per detection per scan, and
-    /// rebuilds the sightings from the result. Landmarks left without a
+    /// rebuilds the sightings from the result. Detections left unexplained
+    /// that gather on one spot found a landmark
+    /// ([`GraphSlam::map_unmatched_clusters`]); landmarks left without a
     /// sighting leave the map.
     pub(super) fn associate_in_hindsight(&mut self, scans: &[PendingScan], gate: f64) {
         let mut chains = self.chains(scans, gate);
@@ -99,6 +102,7 @@ impl GraphSlam {
                 self.detections[link.slot].2 = l;
             }
         }
+        self.map_unmatched_clusters(scans);
         self.rebuild_sightings(scans);
     }
 
