@@ -9,6 +9,7 @@ use cairn_slam::run::run_and_score;
 use cairn_slam::sim::{Preset, SimConfig, simulate};
 use cairn_slam::trackgen::{TrackRules, random_track};
 use cairn_slam::{Color, Track, TrackKind};
+use nalgebra::Vector2;
 use std::path::PathBuf;
 
 fn tracks_dir() -> Option<PathBuf> {
@@ -154,6 +155,24 @@ fn shared_run(
     Some((track, slam, report))
 }
 
+/// [`shared_run`] with the `hard` preset and maximum likelihood.
+fn hard_ml_run(file: &str, seed: u64) -> Option<(Track, GraphSlam, Report)> {
+    shared_run(
+        file,
+        Preset::hard(),
+        seed,
+        AssociationMethod::MaximumLikelihood,
+    )
+}
+
+/// The distance from `p` to the nearest of `points`.
+fn nearest(p: &Vector2<f64>, points: impl IntoIterator<Item = Vector2<f64>>) -> f64 {
+    points
+        .into_iter()
+        .map(|q| (q - p).norm())
+        .fold(f64::INFINITY, f64::min)
+}
+
 #[test]
 fn a_lap_that_ends_one_cone_off_among_clutter_closes_on_the_start_line() {
     // eufs_rand, `hard` seed 29, tracking association: the first lap ends
@@ -181,12 +200,7 @@ fn a_landmark_a_later_lap_starts_beside_a_big_orange_pair_leaves_the_map() {
     // a landmark beside each pair, which scans then matched with either
     // cone, so it never merged; the map held 6 big orange cones for 4 (map
     // RMSE 0.107 m, big orange 0.21 m; 97.48% of detections matched right).
-    let Some((track, slam, report)) = shared_run(
-        "eufs_boa_constrictor.csv",
-        Preset::hard(),
-        0,
-        AssociationMethod::MaximumLikelihood,
-    ) else {
+    let Some((track, slam, report)) = hard_ml_run("eufs_boa_constrictor.csv", 0) else {
         return;
     };
     let truth: Vec<_> = track
@@ -203,11 +217,8 @@ fn a_landmark_a_later_lap_starts_beside_a_big_orange_pair_leaves_the_map() {
         .collect();
     assert_eq!(mapped.len(), truth.len(), "{mapped:?}");
     for p in &mapped {
-        let nearest = truth
-            .iter()
-            .map(|t| (t - p).norm())
-            .fold(f64::INFINITY, f64::min);
-        assert!(nearest < 0.1, "{p} is {nearest} m from a big orange cone");
+        let d = nearest(p, truth.iter().copied());
+        assert!(d < 0.1, "{p} is {d} m from a big orange cone");
     }
     assert!(report.map_rmse < 0.09, "{report:?}");
     assert!(report.association_accuracy > 0.975, "{report:?}");
@@ -221,25 +232,15 @@ fn a_cone_whose_detections_went_to_its_neighbours_gets_a_landmark_at_the_end() {
     // hindsight the cone's 41 detections went to clutter (32) and to its
     // neighbours: the cone was missed (96.81% of detections right). Its
     // unmatched detections gather on one spot and now found its landmark.
-    let Some((track, slam, report)) = shared_run(
-        "eufs_boa_constrictor.csv",
-        Preset::hard(),
-        1,
-        AssociationMethod::MaximumLikelihood,
-    ) else {
+    let Some((track, slam, report)) = hard_ml_run("eufs_boa_constrictor.csv", 1) else {
         return;
     };
     assert_eq!(report.missed, 0, "{report:?}");
-    let cone = track.cones[30].position;
-    let nearest = slam
-        .map()
-        .iter()
-        .map(|c| (c.position - cone).norm())
-        .fold(f64::INFINITY, f64::min);
-    assert!(
-        nearest < 0.2,
-        "cone 30's nearest landmark is {nearest} m off"
+    let d = nearest(
+        &track.cones[30].position,
+        slam.map().iter().map(|c| c.position),
     );
+    assert!(d < 0.2, "cone 30's nearest landmark is {d} m off");
     assert!(report.association_accuracy > 0.97, "{report:?}");
 }
 
@@ -249,12 +250,7 @@ fn objects_beside_the_track_do_not_become_landmarks_at_the_end() {
     // which the detector takes for cones now and then, stand 8–15 m from
     // the path. Two of them gathered 6 and 20 unmatched detections, and
     // mapped as cones they were phantoms (3 instead of 1).
-    let Some((_, _, report)) = shared_run(
-        "eufs_rand.csv",
-        Preset::hard(),
-        0,
-        AssociationMethod::MaximumLikelihood,
-    ) else {
+    let Some((_, _, report)) = hard_ml_run("eufs_rand.csv", 0) else {
         return;
     };
     assert!(report.phantom <= 1, "{report:?}");
