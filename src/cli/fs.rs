@@ -1,11 +1,11 @@
-//! The Formula Student commands: `fs-sim`, `fs-slam`, `fs-eval`.
+//! The Formula Student commands `fs-sim` and `fs-slam` (`fs-eval` is in `fs_eval.rs`).
 
 use super::write_output;
-use cairn::plot::{MapPlot, draw};
+use cairn::slam::Track;
 use cairn::slam::course::Course;
 use cairn::slam::estimator::{EstimatorBuilder, EstimatorKind};
-use cairn::slam::eval::{Report, evaluate, latency_ms};
-use cairn::slam::files::{self, StampedPose};
+use cairn::slam::eval::latency_ms;
+use cairn::slam::files;
 use cairn::slam::frontend::association::AssociationMethod;
 use cairn::slam::frontend::{FrontEndConfig, MotionModel};
 use cairn::slam::log::{Log, Record, to_jsonl};
@@ -14,7 +14,6 @@ use cairn::slam::points::PointCloudConfig;
 use cairn::slam::sim::{Preset, SimConfig, point_clouds, simulate};
 use cairn::slam::track::{map_from_csv, map_to_csv};
 use cairn::slam::trackgen::{TrackRules, random_track};
-use cairn::slam::{Cone, Track};
 use clap::Args;
 use std::path::{Path, PathBuf};
 
@@ -148,33 +147,7 @@ pub struct SlamArgs {
     known_assoc: Option<PathBuf>,
 }
 
-/// Options of `cairn fs-eval`.
-#[derive(Debug, Args)]
-pub struct EvalArgs {
-    /// Simulation directory with truth_map.csv, truth_traj.tum, truth_assoc.csv.
-    #[arg(long)]
-    truth: PathBuf,
-    /// Estimated map (EUFS CSV).
-    #[arg(long)]
-    map: PathBuf,
-    /// Estimated trajectory (TUM).
-    #[arg(long)]
-    traj: PathBuf,
-    /// Estimated associations (CSV).
-    #[arg(long)]
-    assoc: PathBuf,
-    /// Timings written by `fs-slam --timing-out`.
-    #[arg(long)]
-    timing: Option<PathBuf>,
-    /// Print JSON instead of a table.
-    #[arg(long)]
-    json: bool,
-    /// Draw the map over the truth and both trajectories (SVG, or PNG by extension).
-    #[arg(long)]
-    plot: Option<PathBuf>,
-}
-
-fn read_text(path: &Path) -> Result<String, String> {
+pub(super) fn read_text(path: &Path) -> Result<String, String> {
     std::fs::read_to_string(path).map_err(|e| format!("{}: {e}", path.display()))
 }
 
@@ -388,128 +361,6 @@ pub fn run_slam(a: SlamArgs) -> Result<(), String> {
         lat[1]
     );
     Ok(())
-}
-
-pub fn run_eval(a: EvalArgs) -> Result<(), String> {
-    let truth_map = map_from_csv(&read_text(&a.truth.join(TRUTH_MAP))?)
-        .map_err(|e| format!("{TRUTH_MAP}: {e}"))?;
-    let truth_traj = files::trajectory_from_tum(&read_text(&a.truth.join(TRUTH_TRAJ))?)
-        .map_err(|e| format!("{TRUTH_TRAJ}: {e}"))?;
-    let truth_assoc = files::associations_from_csv(&read_text(&a.truth.join(TRUTH_ASSOC))?)
-        .map_err(|e| format!("{TRUTH_ASSOC}: {e}"))?;
-    let map = map_from_csv(&read_text(&a.map)?).map_err(|e| format!("{}: {e}", a.map.display()))?;
-    let traj = files::trajectory_from_tum(&read_text(&a.traj)?)
-        .map_err(|e| format!("{}: {e}", a.traj.display()))?;
-    let assoc = files::associations_from_csv(&read_text(&a.assoc)?)
-        .map_err(|e| format!("{}: {e}", a.assoc.display()))?;
-    let mut report = evaluate(&truth_map, &map, &truth_traj, &traj, &truth_assoc, &assoc);
-    if let Some(path) = &a.timing {
-        let v: serde_json::Value = serde_json::from_str(&read_text(path)?)
-            .map_err(|e| format!("{}: {e}", path.display()))?;
-        let list = |key: &str| -> Vec<f64> {
-            v.get(key)
-                .and_then(|x| x.as_array())
-                .map(|a| a.iter().filter_map(|x| x.as_f64()).collect())
-                .unwrap_or_default()
-        };
-        report.latency_ms = latency_ms(&list("updates_s"));
-        report.loop_closure_ms = list("loop_closures_s")
-            .into_iter()
-            .reduce(f64::max)
-            .map(|s| s * 1e3);
-        report.final_optimisation_ms = v.get("final_s").and_then(|x| x.as_f64()).map(|s| s * 1e3);
-    }
-    if let Some(path) = &a.plot {
-        plot_run(
-            path,
-            &a.map.display().to_string(),
-            &truth_map,
-            &map,
-            &truth_traj,
-            &traj,
-        )?;
-    }
-    if a.json {
-        println!(
-            "{}",
-            serde_json::to_string_pretty(&report).map_err(|e| e.to_string())?
-        );
-    } else {
-        print!("{}", table(&report));
-    }
-    Ok(())
-}
-
-/// Draws a run over its truth.
-pub fn plot_run(
-    path: &Path,
-    title: &str,
-    truth_map: &[Cone],
-    map: &[Cone],
-    truth_traj: &[StampedPose],
-    traj: &[StampedPose],
-) -> Result<(), String> {
-    let true_path: Vec<_> = truth_traj.iter().map(|p| p.pose.t).collect();
-    let est_path: Vec<_> = traj.iter().map(|p| p.pose.t).collect();
-    draw(
-        &MapPlot {
-            title: title.to_string(),
-            truth: truth_map,
-            map,
-            true_path: &true_path,
-            path: &est_path,
-        },
-        path,
-    )
-}
-
-/// The report as an aligned text table.
-pub fn table(r: &Report) -> String {
-    let mut rows = vec![
-        ("landmarks".to_string(), r.landmarks.to_string()),
-        ("map RMSE (m)".into(), format!("{:.3}", r.map_rmse)),
-        (
-            "map RMSE, aligned (m)".into(),
-            format!("{:.3}", r.map_rmse_aligned),
-        ),
-    ];
-    if let (Some(predicted), Some(nees)) = (r.map_rmse_predicted, r.map_nees) {
-        rows.push(("map RMSE, predicted (m)".into(), format!("{predicted:.3}")));
-        rows.push(("map NEES (2 if consistent)".into(), format!("{nees:.2}")));
-    }
-    for (c, e, n) in &r.map_rmse_by_color {
-        rows.push((format!("  {c} ({n})"), format!("{e:.3}")));
-    }
-    rows.extend([
-        ("phantom landmarks".into(), r.phantom.to_string()),
-        ("missed cones".into(), r.missed.to_string()),
-        ("ATE (m)".into(), format!("{:.3}", r.ate)),
-        ("ATE, aligned (m)".into(), format!("{:.3}", r.ate_aligned)),
-        (
-            "association accuracy".into(),
-            format!("{:.2}% of {}", 100.0 * r.association_accuracy, r.detections),
-        ),
-    ]);
-    if let Some([p50, p99, max]) = r.latency_ms {
-        rows.push((
-            "update p50/p99/max (ms)".into(),
-            format!("{p50:.3} / {p99:.3} / {max:.3}"),
-        ));
-    }
-    if let Some(ms) = r.loop_closure_ms {
-        rows.push(("loop-closure optimisation (ms)".into(), format!("{ms:.1}")));
-    }
-    if let Some(ms) = r.final_optimisation_ms {
-        rows.push(("final optimisation (ms)".into(), format!("{ms:.1}")));
-    }
-    let width = rows
-        .iter()
-        .map(|(k, _)| k.chars().count())
-        .max()
-        .unwrap_or(0);
-    rows.iter()
-        .map(|(k, v)| format!("{k:<width$}  {v}\n"))
-        .collect()
 }
 
 /// Replaces the parts of the preset's detector model that `a` gives.

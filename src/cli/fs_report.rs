@@ -2,7 +2,7 @@
 //! association method × seed, simulated, mapped and scored into one
 //! Markdown report with plots.
 
-use super::fs::plot_run;
+use super::fs_eval::plot_run;
 use super::fs_targets::{Summary, TrackSummary, targets_section};
 use cairn::slam::Track;
 use cairn::slam::course::Course;

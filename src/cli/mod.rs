@@ -3,6 +3,7 @@
 mod check;
 mod corrupt;
 mod fs;
+mod fs_eval;
 mod fs_report;
 mod fs_targets;
 mod generate;
@@ -39,7 +40,7 @@ enum Command {
     /// Cone SLAM on a log: map, trajectory and associations.
     FsSlam(fs::SlamArgs),
     /// Score a cone-SLAM run against the simulation's truth.
-    FsEval(fs::EvalArgs),
+    FsEval(fs_eval::EvalArgs),
     /// Simulate, map and score every shared and some random tracks into a report.
     FsReport(fs_report::ReportArgs),
     /// Compare the estimators (graph, EKF-SLAM, FastSLAM 1.0/2.0) on simulated
@@ -56,7 +57,7 @@ pub fn run(cli: Cli) -> Result<(), String> {
         Command::Corrupt(args) => corrupt::run(args),
         Command::FsSim(args) => fs::run_sim(args),
         Command::FsSlam(args) => fs::run_slam(args),
-        Command::FsEval(args) => fs::run_eval(args),
+        Command::FsEval(args) => fs_eval::run_eval(args),
         Command::FsReport(args) => fs_report::run(args),
         Command::FsStudy(args) => study::run(args),
     }

@@ -1,7 +1,7 @@
 //! The sweeps of `cairn fs-study`: map error along the run, particles,
 //! detector noise.
 
-use super::fs::plot_run;
+use super::fs_eval::plot_run;
 use super::study::simulate_on;
 use cairn::plot::{LinePlot, draw_lines};
 use cairn::slam::Track;
