@@ -7,7 +7,8 @@ the default factorisation and thread count.
   cargo build --release
   python3 scripts/factorization.py [--reps 3] [--only city10000,sphere2500]
 
-Writes the table between the factorization markers of BENCHMARKS.md.
+Writes the table between the factorization markers of BENCHMARKS.md; with
+--only, the rows of the other files stay as they were.
 """
 
 import argparse
@@ -33,6 +34,19 @@ def solve(cairn, path, factorization, threads):
     return d["solve_s"], d["summary"]["supernodal"], d["summary"]["final_chi2"]
 
 
+def kept_rows(doc):
+    """The rows of the factorisation table in `doc`, by dataset."""
+    if not os.path.exists(doc):
+        return {}
+    text = open(doc).read()
+    begin, end = "<!-- factorization:begin -->", "<!-- factorization:end -->"
+    if begin not in text or end not in text:
+        return {}
+    section = text[text.index(begin) + len(begin):text.index(end)]
+    rows = [line for line in section.splitlines() if line.startswith("| ")][1:]
+    return {line.split("|")[1].strip(): line for line in rows}
+
+
 def main():
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("--cairn", default=os.path.join(ROOT, "target", "release", "cairn"))
@@ -47,8 +61,10 @@ def main():
         keep = set(a.only.split(","))
         files = [f for f in files if f[:-4] in keep or f in keep]
     files = [f for f in files if vertex_count(os.path.join(a.data, f)) >= 1000]
-    lines = ["| dataset | simplicial | supernodal | default (kind) | default, 2 threads | "
-             "same χ² with 2 threads |", "|---|---:|---:|---:|---:|---|"]
+    head = ["| dataset | simplicial | supernodal | default (kind) | default, 2 threads | "
+            "same χ² with 2 threads |", "|---|---:|---:|---:|---:|---|"]
+    # With --only, the other files' rows already in the document stay.
+    rows = kept_rows(a.doc) if a.only and a.doc else {}
     for f in files:
         path = os.path.join(a.data, f)
         times = {v: [] for v in VARIANTS}
@@ -64,8 +80,8 @@ def main():
         row = (f"| {f[:-4]} | {ms[VARIANTS[0]]:.0f} ms | {ms[VARIANTS[1]]:.0f} ms | "
                f"{ms[VARIANTS[2]]:.0f} ms ({default}) | {ms[VARIANTS[3]]:.0f} ms | {same} |")
         print(row, flush=True)
-        lines.append(row)
-    table = "\n".join(lines)
+        rows[f[:-4]] = row
+    table = "\n".join(head + [rows[name] for name in sorted(rows)])
     if a.doc:
         write_section(a.doc, "factorization", table)
 
