@@ -6,7 +6,6 @@
 use crate::SolveError;
 use crate::selected_inverse::{LowerFactor, SelectedInverse, Supernodes};
 use crate::simplicial::{SimplicialCholesky, SimplicialSymbolic};
-use crate::structure::group_by_key;
 use faer::dyn_stack::{MemBuffer, MemStack, StackReq};
 use faer::linalg::cholesky::llt::factor::{LltError, LltRegularization};
 use faer::sparse::linalg::SupernodalThreshold;
@@ -259,20 +258,33 @@ struct LowerTriangle {
 impl LowerTriangle {
     fn new(upper: SymbolicSparseColMatRef<'_, usize>) -> Self {
         let n = upper.ncols();
-        // Entry (r, c) of the upper triangle is (c, r) of the lower one;
-        // grouped by r in upper column order, each lower column's rows
-        // come sorted. (H's dimension fits u32: `HessianStructure` checks.)
-        let pairs: Vec<(u32, (usize, usize))> = (0..n)
-            .flat_map(|c| {
-                let entries = upper.col_range(c).zip(upper.row_idx_of_col_raw(c));
-                entries.map(move |(k, &r)| (r as u32, (c, k)))
-            })
-            .collect();
-        let (col_ptr, entries) = group_by_key(n, &pairs);
-        let (rows, source): (Vec<usize>, Vec<usize>) = entries.into_iter().unzip();
+        // Entry (r, c) of the upper triangle is (c, r) of the lower one.
+        // Counting the entries of each row r of the upper triangle gives the
+        // lower one's column pointers; walking the upper columns in order
+        // then fills each lower column with its rows already sorted.
+        let mut col_ptr = vec![0usize; n + 1];
+        for c in 0..n {
+            for &r in upper.row_idx_of_col_raw(c) {
+                col_ptr[r + 1] += 1;
+            }
+        }
+        for c in 0..n {
+            col_ptr[c + 1] += col_ptr[c];
+        }
+        let mut next = col_ptr[..n].to_vec();
+        let nnz = col_ptr[n];
+        let (mut rows, mut source) = (vec![0usize; nnz], vec![0usize; nnz]);
+        for c in 0..n {
+            let entries = upper.col_range(c).zip(upper.row_idx_of_col_raw(c));
+            for (k, &r) in entries {
+                rows[next[r]] = c;
+                source[next[r]] = k;
+                next[r] += 1;
+            }
+        }
         Self {
             pattern: SymbolicSparseColMat::new_checked(n, n, col_ptr, None, rows),
-            values: vec![0.0; source.len()],
+            values: vec![0.0; nnz],
             source,
         }
     }
