@@ -413,8 +413,11 @@ fn supernodal_solve(
         for (j, column) in values.chunks_exact(rows).enumerate() {
             let xj = x[start + j] / column[j];
             x[start + j] = xj;
-            for (i, &l) in column[j + 1..size].iter().enumerate() {
-                x[start + j + 1 + i] -= l * xj;
+            for (xi, &l) in x[start + j + 1..start + size]
+                .iter_mut()
+                .zip(&column[j + 1..size])
+            {
+                *xi -= l * xj;
             }
             for (t, &l) in tmp.iter_mut().zip(&column[size..]) {
                 *t += l * xj;
@@ -431,11 +434,11 @@ fn supernodal_solve(
             *t = x[r];
         }
         for (j, column) in values.chunks_exact(rows).enumerate().rev() {
-            let mut xj = x[start + j];
-            for (i, &l) in column[j + 1..size].iter().enumerate() {
-                xj -= l * x[start + j + 1 + i];
-            }
-            xj -= dot_in_lanes(&column[size..], tmp);
+            // Two dot products in independent lanes: a running sum would
+            // wait on each addition, and the diagonal blocks of the large
+            // supernodes near the root hold a good part of the factor.
+            let diagonal = dot_in_lanes(&column[j + 1..size], &x[start + j + 1..start + size]);
+            let xj = x[start + j] - diagonal - dot_in_lanes(&column[size..], tmp);
             x[start + j] = xj / column[j];
         }
     }
