@@ -35,6 +35,9 @@ pub mod optimizer;
 mod selected_inverse;
 mod simplicial;
 pub mod structure;
+mod supernodal;
+#[cfg(test)]
+mod test_matrices;
 
 pub use chordal::{ChordalReport, ChordalWeights, chordal_initialize, chordal_initialize_with};
 pub use config::{

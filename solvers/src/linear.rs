@@ -1,17 +1,20 @@
 //! Sparse Cholesky of the Hessian: symbolic analysis once, numeric
-//! factorisation per iteration into reused buffers. Supernodal factors (and
-//! the scalar AMD ordering) are faer's; simplicial ones are Cairn's
-//! block-aware code (the `simplicial` module).
+//! factorisation per iteration into reused buffers. Supernodal factors have
+//! faer's symbolic structure and Cairn's numeric factorisation and solves
+//! (the `supernodal` module; faer's own numeric one under faer's scalar AMD
+//! ordering); simplicial ones are Cairn's block-aware code (the `simplicial`
+//! module).
 
 use crate::SolveError;
 use crate::selected_inverse::{LowerFactor, SelectedInverse, Supernodes};
 use crate::simplicial::{SimplicialCholesky, SimplicialSymbolic};
+use crate::supernodal::{SupernodalNumeric, supernodal_solve};
 use faer::dyn_stack::{MemBuffer, MemStack, StackReq};
 use faer::linalg::cholesky::llt::factor::{LltError, LltRegularization};
 use faer::sparse::linalg::SupernodalThreshold;
 use faer::sparse::linalg::cholesky::{
     CholeskySymbolicParams, LltRef, SymbolicCholesky, SymbolicCholeskyRaw, SymmetricOrdering,
-    factorize_symbolic_cholesky, supernodal::SymbolicSupernodalCholesky,
+    factorize_symbolic_cholesky,
 };
 use faer::sparse::{SparseColMatRef, SymbolicSparseColMat, SymbolicSparseColMatRef};
 use faer::{Conj, MatMut, Par, Side};
@@ -228,10 +231,9 @@ enum Factor {
 /// faer's factor with its symbolic analysis and work space.
 struct FaerCholesky {
     symbolic: SymbolicCholesky<usize>,
-    /// H's lower triangle, for the supernodal factorisation without a
-    /// permutation, which reads that triangle (given the upper one, faer
-    /// transposes it into new arrays at every factorisation).
-    lower: Option<Box<LowerTriangle>>,
+    /// Cairn's numeric factorisation on faer's supernodal structure, used
+    /// when there is no permutation (every ordering but scalar AMD).
+    numeric: Option<Box<SupernodalNumeric>>,
     values: Vec<f64>,
     /// Rows below one supernode's diagonal block, for the solves.
     work: Vec<f64>,
@@ -247,72 +249,22 @@ impl std::fmt::Debug for FaerCholesky {
     }
 }
 
-/// The lower triangle of a symmetric matrix given by its upper one: the
-/// pattern, and where each of its values sits among the upper one's.
-struct LowerTriangle {
-    pattern: SymbolicSparseColMat<usize>,
-    source: Vec<usize>,
-    values: Vec<f64>,
-}
-
-impl LowerTriangle {
-    fn new(upper: SymbolicSparseColMatRef<'_, usize>) -> Self {
-        let n = upper.ncols();
-        // Entry (r, c) of the upper triangle is (c, r) of the lower one.
-        // Counting the entries of each row r of the upper triangle gives the
-        // lower one's column pointers; walking the upper columns in order
-        // then fills each lower column with its rows already sorted.
-        let mut col_ptr = vec![0usize; n + 1];
-        for c in 0..n {
-            for &r in upper.row_idx_of_col_raw(c) {
-                col_ptr[r + 1] += 1;
-            }
-        }
-        for c in 0..n {
-            col_ptr[c + 1] += col_ptr[c];
-        }
-        let mut next = col_ptr[..n].to_vec();
-        let nnz = col_ptr[n];
-        let (mut rows, mut source) = (vec![0usize; nnz], vec![0usize; nnz]);
-        for c in 0..n {
-            let entries = upper.col_range(c).zip(upper.row_idx_of_col_raw(c));
-            for (k, &r) in entries {
-                rows[next[r]] = c;
-                source[next[r]] = k;
-                next[r] += 1;
-            }
-        }
-        Self {
-            pattern: SymbolicSparseColMat::new_checked(n, n, col_ptr, None, rows),
-            values: vec![0.0; nnz],
-            source,
-        }
-    }
-
-    /// The lower triangle of the matrix whose upper triangle holds `upper`.
-    fn fill(&mut self, upper: &[f64]) -> SparseColMatRef<'_, usize, f64> {
-        for (v, &k) in self.values.iter_mut().zip(&self.source) {
-            *v = upper[k];
-        }
-        SparseColMatRef::new(self.pattern.as_ref(), &self.values)
-    }
-}
-
 impl FaerCholesky {
     fn factorize(&mut self, h: SparseColMatRef<'_, usize, f64>) -> Result<(), NotPositiveDefinite> {
         let regularization = LltRegularization {
             dynamic_regularization_delta: 0.0,
             dynamic_regularization_epsilon: 0.0,
         };
-        let (h, side) = match &mut self.lower {
-            Some(lower) => (lower.fill(h.val()), Side::Lower),
-            None => (h, Side::Upper),
-        };
+        if let (Some(numeric), SymbolicCholeskyRaw::Supernodal(symbolic)) =
+            (&mut self.numeric, self.symbolic.raw())
+        {
+            return numeric.factorize(symbolic, h.val(), &mut self.values);
+        }
         self.symbolic
             .factorize_numeric_llt(
                 &mut self.values,
                 h,
-                side,
+                Side::Upper,
                 regularization,
                 self.par,
                 MemStack::new(&mut self.scratch),
@@ -364,93 +316,13 @@ impl FaerCholesky {
     }
 }
 
-/// `a · b` summed in eight independent lanes, which the compiler keeps in
-/// SIMD registers (a single running sum waits on each addition in turn).
-fn dot_in_lanes(a: &[f64], b: &[f64]) -> f64 {
-    let mut lanes = [0.0; 8];
-    let (a_chunks, b_chunks) = (a.chunks_exact(8), b.chunks_exact(8));
-    let tail: f64 = a_chunks
-        .remainder()
-        .iter()
-        .zip(b_chunks.remainder())
-        .map(|(x, y)| x * y)
-        .sum();
-    for (x, y) in a_chunks.zip(b_chunks) {
-        for k in 0..8 {
-            lanes[k] += x[k] * y[k];
-        }
-    }
-    lanes.iter().sum::<f64>() + tail
-}
-
-/// Solves L Lᵀ x = b in place for faer's supernodal factor L (unpermuted).
-/// faer's own solve multiplies each supernode through its general dense
-/// kernels, which on the small supernodes of pose graphs (3 to a few dozen
-/// columns) costs more than these loops. The rows below a supernode's
-/// diagonal block are gathered into `work` once, so the products with them
-/// run over contiguous memory.
-fn supernodal_solve(
-    symbolic: &SymbolicSupernodalCholesky<usize>,
-    values: &[f64],
-    x: &mut [f64],
-    work: &mut [f64],
-) {
-    let (begin, end) = (symbolic.supernode_begin(), symbolic.supernode_end());
-    let (val_ptr, row_ptr) = (symbolic.col_ptr_for_val(), symbolic.col_ptr_for_row_idx());
-    // Supernode s: its first column, its width, its values (column-major,
-    // the diagonal block's rows first) and the rows below the diagonal block.
-    let supernode = |s: usize| {
-        let (start, size) = (begin[s], end[s] - begin[s]);
-        let values = &values[val_ptr[s]..val_ptr[s + 1]];
-        let rows = values.len() / size;
-        let below = &symbolic.row_idx()[row_ptr[s]..][..rows - size];
-        (start, size, rows, values, below)
-    };
-    for s in 0..begin.len() {
-        let (start, size, rows, values, below) = supernode(s);
-        let tmp = &mut work[..below.len()];
-        tmp.fill(0.0);
-        for (j, column) in values.chunks_exact(rows).enumerate() {
-            let xj = x[start + j] / column[j];
-            x[start + j] = xj;
-            for (xi, &l) in x[start + j + 1..start + size]
-                .iter_mut()
-                .zip(&column[j + 1..size])
-            {
-                *xi -= l * xj;
-            }
-            for (t, &l) in tmp.iter_mut().zip(&column[size..]) {
-                *t += l * xj;
-            }
-        }
-        for (&r, &t) in below.iter().zip(tmp.iter()) {
-            x[r] -= t;
-        }
-    }
-    for s in (0..begin.len()).rev() {
-        let (start, size, rows, values, below) = supernode(s);
-        let tmp = &mut work[..below.len()];
-        for (t, &r) in tmp.iter_mut().zip(below) {
-            *t = x[r];
-        }
-        for (j, column) in values.chunks_exact(rows).enumerate().rev() {
-            // Two dot products in independent lanes: a running sum would
-            // wait on each addition, and the diagonal blocks of the large
-            // supernodes near the root hold a good part of the factor.
-            let diagonal = dot_in_lanes(&column[j + 1..size], &x[start + j + 1..start + size]);
-            let xj = x[start + j] - diagonal - dot_in_lanes(&column[size..], tmp);
-            x[start + j] = xj / column[j];
-        }
-    }
-}
-
 impl SparseCholesky {
     /// Symbolic analysis of H, given by its upper triangle `pattern` and the
     /// upper triangle of its vertex blocks, `block_pattern`, with each
     /// block's size in `block_dims`. Block orderings are the caller's to
     /// apply (by numbering the blocks in `block_order`); only
     /// [`Ordering::Amd`] is left to faer. A simplicial factor is Cairn's block-aware one
-    /// (the `simplicial` module), a supernodal one faer's.
+    /// (the `simplicial` module), a supernodal one on faer's structure.
     pub fn analyze(
         pattern: SymbolicSparseColMatRef<'_, usize>,
         block_pattern: SymbolicSparseColMatRef<'_, usize>,
@@ -524,11 +396,14 @@ impl SparseCholesky {
                 .unwrap_or(0),
             SymbolicCholeskyRaw::Simplicial(_) => 0,
         };
-        let lower = (matches!(symbolic.raw(), SymbolicCholeskyRaw::Supernodal(_))
-            && symbolic.perm().is_none())
-        .then(|| Box::new(LowerTriangle::new(pattern)));
+        let numeric = match (symbolic.raw(), symbolic.perm()) {
+            (SymbolicCholeskyRaw::Supernodal(s), None) => {
+                SupernodalNumeric::new(s, pattern, par).map(Box::new)
+            }
+            _ => None,
+        };
         Ok(Factor::Faer(FaerCholesky {
-            lower,
+            numeric,
             values: vec![0.0; symbolic.len_val()],
             work: vec![0.0; work],
             symbolic,

@@ -1,0 +1,289 @@
+//! Cairn's numeric factorisation and solves on faer's supernodal symbolic
+//! structure (its supernodes, row patterns and value layout).
+//!
+//! The factorisation is right-looking: each supernode, once its columns
+//! hold all their updates, is factorised (dense Cholesky of its diagonal
+//! block, a triangular solve for the rows below), then forms its whole update
+//! L₂₁L₂₁ᵀ in one dense product and subtracts it from the later supernodes'
+//! columns. faer's own numeric factorisation is left-looking: each supernode
+//! gathers the updates of its descendants one product at a time. On pose
+//! graphs, whose supernodes are narrow, one product per supernode is 15–20%
+//! faster (BENCHMARKS.md) and gives the same values.
+
+use crate::linear::NotPositiveDefinite;
+use faer::dyn_stack::{MemBuffer, MemStack};
+use faer::linalg::cholesky::llt::factor::{
+    LltError, LltRegularization, cholesky_in_place, cholesky_in_place_scratch,
+};
+use faer::linalg::matmul::triangular::{BlockStructure, matmul};
+use faer::linalg::triangular_solve::solve_lower_triangular_in_place;
+use faer::reborrow::*;
+use faer::sparse::SymbolicSparseColMatRef;
+use faer::sparse::linalg::cholesky::supernodal::SymbolicSupernodalCholesky;
+use faer::{Accum, MatMut, Par};
+
+/// Where the entries of H go in L, and where each supernode's update goes.
+pub(crate) struct SupernodalNumeric {
+    /// For each entry of H's upper triangle, its position among L's values.
+    h_to_l: Vec<usize>,
+    /// Per supernode, the runs of its rows below the diagonal block that
+    /// fall in one later supernode: `(first row, end row, rel start)`.
+    groups: Vec<(u32, u32, usize)>,
+    group_start: Vec<usize>,
+    /// For each group, the positions within that later supernode's columns
+    /// of the rows from the group's first on.
+    rel: Vec<u32>,
+    /// Per row below a supernode's diagonal block (in faer's row-index
+    /// order), the position among L's values where its column starts.
+    column_start: Vec<usize>,
+    /// One supernode's update, L₂₁L₂₁ᵀ (lower triangle, column-major).
+    update: Vec<f64>,
+    scratch: MemBuffer,
+    par: Par,
+}
+
+/// Supernode `s`'s first column, width, number of rows (the diagonal
+/// block's and those below) and the rows below.
+fn supernode(
+    symbolic: &SymbolicSupernodalCholesky<usize>,
+    s: usize,
+) -> (usize, usize, usize, &[usize]) {
+    let (start, end) = (symbolic.supernode_begin()[s], symbolic.supernode_end()[s]);
+    let val_ptr = symbolic.col_ptr_for_val();
+    let width = end - start;
+    let rows = (val_ptr[s + 1] - val_ptr[s]) / width;
+    let below = &symbolic.row_idx()[symbolic.col_ptr_for_row_idx()[s]..][..rows - width];
+    (start, width, rows, below)
+}
+
+/// Position of row `r` within the rows of the supernode starting at column
+/// `start` with `width` columns and rows `below` under its diagonal block.
+fn position(r: usize, start: usize, width: usize, below: &[usize]) -> Option<usize> {
+    if r < start + width {
+        r.checked_sub(start)
+    } else {
+        below.binary_search(&r).ok().map(|p| width + p)
+    }
+}
+
+impl SupernodalNumeric {
+    /// The plan for H's upper triangle `upper` on `symbolic` (faer's
+    /// analysis of that pattern without a permutation). `None` if the
+    /// pattern does not fit the structure (which faer's analysis rules out)
+    /// or the plan would outgrow the factor.
+    pub(crate) fn new(
+        symbolic: &SymbolicSupernodalCholesky<usize>,
+        upper: SymbolicSparseColMatRef<'_, usize>,
+        par: Par,
+    ) -> Option<Self> {
+        let n_supernodes = symbolic.n_supernodes();
+        let val_ptr = symbolic.col_ptr_for_val();
+        let mut supernode_of = vec![0; upper.ncols()];
+        for s in 0..n_supernodes {
+            supernode_of[symbolic.supernode_begin()[s]..symbolic.supernode_end()[s]].fill(s);
+        }
+        // H's entry (r, c), r ≤ c, is L's (c, r): column r, row c.
+        let mut h_to_l = Vec::with_capacity(upper.row_idx().len());
+        for c in 0..upper.ncols() {
+            for &r in upper.row_idx_of_col_raw(c) {
+                let s = *supernode_of.get(r)?;
+                let (start, width, rows, below) = supernode(symbolic, s);
+                let p = position(c, start, width, below)?;
+                h_to_l.push(val_ptr[s] + (r - start) * rows + p);
+            }
+        }
+        let (mut groups, mut group_start, mut rel) = (Vec::new(), vec![0], Vec::new());
+        let mut column_start = Vec::new();
+        let (mut widest, mut tallest) = (0, 0);
+        for d in 0..n_supernodes {
+            let (_, width, _, pattern) = supernode(symbolic, d);
+            (widest, tallest) = (widest.max(width), tallest.max(pattern.len()));
+            let mut j = 0;
+            while j < pattern.len() {
+                let s = supernode_of[pattern[j]];
+                let (start, width, rows, below) = supernode(symbolic, s);
+                let end = j + pattern[j..].partition_point(|&r| r < start + width);
+                groups.push((j as u32, end as u32, rel.len()));
+                for &r in &pattern[j..] {
+                    rel.push(position(r, start, width, below)? as u32);
+                }
+                for &c in &pattern[j..end] {
+                    column_start.push(val_ptr[s] + (c - start) * rows);
+                }
+                j = end;
+            }
+            group_start.push(groups.len());
+            if rel.len() > symbolic.len_val() {
+                return None;
+            }
+        }
+        let req = cholesky_in_place_scratch::<f64>(widest, par, Default::default());
+        Some(Self {
+            h_to_l,
+            groups,
+            group_start,
+            rel,
+            column_start,
+            update: vec![0.0; tallest * tallest],
+            scratch: MemBuffer::try_new(req).ok()?,
+            par,
+        })
+    }
+
+    /// Factorises H, given by the values of its upper triangle, into
+    /// `values` (faer's supernodal layout).
+    pub(crate) fn factorize(
+        &mut self,
+        symbolic: &SymbolicSupernodalCholesky<usize>,
+        h: &[f64],
+        values: &mut [f64],
+    ) -> Result<(), NotPositiveDefinite> {
+        values.fill(0.0);
+        for (&p, &x) in self.h_to_l.iter().zip(h) {
+            values[p] = x;
+        }
+        let val_ptr = symbolic.col_ptr_for_val();
+        let mut next_row = 0;
+        for d in 0..symbolic.n_supernodes() {
+            let (start, width, rows, _) = supernode(symbolic, d);
+            let below = rows - width;
+            let (done, later) = values.split_at_mut(val_ptr[d + 1]);
+            let l = MatMut::from_column_major_slice_mut(&mut done[val_ptr[d]..], rows, width);
+            let (mut diagonal, mut l21) = l.split_at_row_mut(width);
+            let stack = MemStack::new(&mut self.scratch);
+            cholesky_in_place(
+                diagonal.rb_mut(),
+                LltRegularization::default(),
+                self.par,
+                stack,
+                Default::default(),
+            )
+            .map_err(|LltError::NonPositivePivot { index }| NotPositiveDefinite {
+                pivot: index + start,
+            })?;
+            solve_lower_triangular_in_place(diagonal.rb(), l21.rb_mut().transpose_mut(), self.par);
+            if below == 0 {
+                continue;
+            }
+            let mut update = MatMut::from_column_major_slice_mut(
+                &mut self.update[..below * below],
+                below,
+                below,
+            );
+            matmul(
+                update.rb_mut(),
+                BlockStructure::TriangularLower,
+                Accum::Replace,
+                l21.rb(),
+                BlockStructure::Rectangular,
+                l21.rb().transpose(),
+                BlockStructure::Rectangular,
+                1.0,
+                self.par,
+            );
+            // Column j of the update goes to the column of row j of the
+            // pattern, in the supernode holding it; row i ≥ j to position
+            // rel[i] there.
+            let column_start = &self.column_start[next_row..next_row + below];
+            next_row += below;
+            for &(first, end, rel_start) in
+                &self.groups[self.group_start[d]..self.group_start[d + 1]]
+            {
+                let (first, end) = (first as usize, end as usize);
+                let rel = &self.rel[rel_start..rel_start + below - first];
+                for j in first..end {
+                    let rel = &rel[j - first..];
+                    let last = rel[rel.len() - 1] as usize;
+                    let target = &mut later[column_start[j] - val_ptr[d + 1]..][..=last];
+                    for (&r, &u) in rel.iter().zip(&self.update[j * below + j..(j + 1) * below]) {
+                        target[r as usize] -= u;
+                    }
+                }
+            }
+        }
+        Ok(())
+    }
+}
+
+/// `a · b` summed in eight independent lanes, which the compiler keeps in
+/// SIMD registers (a single running sum waits on each addition in turn).
+pub(crate) fn dot_in_lanes(a: &[f64], b: &[f64]) -> f64 {
+    let mut lanes = [0.0; 8];
+    let (a_chunks, b_chunks) = (a.chunks_exact(8), b.chunks_exact(8));
+    let tail: f64 = a_chunks
+        .remainder()
+        .iter()
+        .zip(b_chunks.remainder())
+        .map(|(x, y)| x * y)
+        .sum();
+    for (x, y) in a_chunks.zip(b_chunks) {
+        for k in 0..8 {
+            lanes[k] += x[k] * y[k];
+        }
+    }
+    lanes.iter().sum::<f64>() + tail
+}
+
+/// Solves L Lᵀ x = b in place for faer's supernodal factor L (unpermuted).
+/// faer's own solve multiplies each supernode through its general dense
+/// kernels, which on the small supernodes of pose graphs (3 to a few dozen
+/// columns) costs more than these loops. The rows below a supernode's
+/// diagonal block are gathered into `work` once, so the products with them
+/// run over contiguous memory.
+pub(crate) fn supernodal_solve(
+    symbolic: &SymbolicSupernodalCholesky<usize>,
+    values: &[f64],
+    x: &mut [f64],
+    work: &mut [f64],
+) {
+    let (begin, end) = (symbolic.supernode_begin(), symbolic.supernode_end());
+    let (val_ptr, row_ptr) = (symbolic.col_ptr_for_val(), symbolic.col_ptr_for_row_idx());
+    // Supernode s: its first column, its width, its values (column-major,
+    // the diagonal block's rows first) and the rows below the diagonal block.
+    let supernode = |s: usize| {
+        let (start, size) = (begin[s], end[s] - begin[s]);
+        let values = &values[val_ptr[s]..val_ptr[s + 1]];
+        let rows = values.len() / size;
+        let below = &symbolic.row_idx()[row_ptr[s]..][..rows - size];
+        (start, size, rows, values, below)
+    };
+    for s in 0..begin.len() {
+        let (start, size, rows, values, below) = supernode(s);
+        let tmp = &mut work[..below.len()];
+        tmp.fill(0.0);
+        for (j, column) in values.chunks_exact(rows).enumerate() {
+            let xj = x[start + j] / column[j];
+            x[start + j] = xj;
+            for (xi, &l) in x[start + j + 1..start + size]
+                .iter_mut()
+                .zip(&column[j + 1..size])
+            {
+                *xi -= l * xj;
+            }
+            for (t, &l) in tmp.iter_mut().zip(&column[size..]) {
+                *t += l * xj;
+            }
+        }
+        for (&r, &t) in below.iter().zip(tmp.iter()) {
+            x[r] -= t;
+        }
+    }
+    for s in (0..begin.len()).rev() {
+        let (start, size, rows, values, below) = supernode(s);
+        let tmp = &mut work[..below.len()];
+        for (t, &r) in tmp.iter_mut().zip(below) {
+            *t = x[r];
+        }
+        for (j, column) in values.chunks_exact(rows).enumerate().rev() {
+            // Two dot products in independent lanes: a running sum would
+            // wait on each addition, and the diagonal blocks of the large
+            // supernodes near the root hold a good part of the factor.
+            let diagonal = dot_in_lanes(&column[j + 1..size], &x[start + j + 1..start + size]);
+            let xj = x[start + j] - diagonal - dot_in_lanes(&column[size..], tmp);
+            x[start + j] = xj / column[j];
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests;
