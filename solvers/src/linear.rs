@@ -380,10 +380,20 @@ impl SparseCholesky {
         } else {
             Par::Seq
         };
-        let req = StackReq::any_of(&[
-            symbolic.factorize_numeric_llt_scratch::<f64>(par, Default::default()),
-            symbolic.solve_in_place_scratch::<f64>(1, par),
-        ]);
+        let numeric = match (symbolic.raw(), symbolic.perm()) {
+            (SymbolicCholeskyRaw::Supernodal(s), None) => {
+                SupernodalNumeric::new(s, pattern, par).map(Box::new)
+            }
+            _ => None,
+        };
+        // faer's work space serves only faer's own factorisation and solves.
+        let req = match numeric {
+            Some(_) => StackReq::EMPTY,
+            None => StackReq::any_of(&[
+                symbolic.factorize_numeric_llt_scratch::<f64>(par, Default::default()),
+                symbolic.solve_in_place_scratch::<f64>(1, par),
+            ]),
+        };
         let scratch = MemBuffer::try_new(req).map_err(|_| SolveError::OutOfMemory)?;
         let work = match symbolic.raw() {
             SymbolicCholeskyRaw::Supernodal(s) => (0..s.n_supernodes())
@@ -395,12 +405,6 @@ impl SparseCholesky {
                 .max()
                 .unwrap_or(0),
             SymbolicCholeskyRaw::Simplicial(_) => 0,
-        };
-        let numeric = match (symbolic.raw(), symbolic.perm()) {
-            (SymbolicCholeskyRaw::Supernodal(s), None) => {
-                SupernodalNumeric::new(s, pattern, par).map(Box::new)
-            }
-            _ => None,
         };
         Ok(Factor::Faer(FaerCholesky {
             numeric,

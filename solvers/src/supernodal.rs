@@ -82,13 +82,23 @@ impl SupernodalNumeric {
         for s in 0..n_supernodes {
             supernode_of[symbolic.supernode_begin()[s]..symbolic.supernode_end()[s]].fill(s);
         }
-        // H's entry (r, c), r ≤ c, is L's (c, r): column r, row c.
+        // H's entry (r, c), r ≤ c, is L's (c, r): column r, row c. Row c's
+        // position is the same in every column of r's supernode, so it is
+        // looked up once per supernode met in H's column c.
         let mut h_to_l = Vec::with_capacity(upper.row_idx().len());
         for c in 0..upper.ncols() {
+            let mut last: Option<(usize, usize, usize, usize)> = None;
             for &r in upper.row_idx_of_col_raw(c) {
                 let s = *supernode_of.get(r)?;
-                let (start, width, rows, below) = supernode(symbolic, s);
-                let p = position(c, start, width, below)?;
+                let (start, rows, p) = match last {
+                    Some((ls, start, rows, p)) if ls == s => (start, rows, p),
+                    _ => {
+                        let (start, width, rows, below) = supernode(symbolic, s);
+                        let p = position(c, start, width, below)?;
+                        last = Some((s, start, rows, p));
+                        (start, rows, p)
+                    }
+                };
                 h_to_l.push(val_ptr[s] + (r - start) * rows + p);
             }
         }
@@ -104,8 +114,19 @@ impl SupernodalNumeric {
                 let (start, width, rows, below) = supernode(symbolic, s);
                 let end = j + pattern[j..].partition_point(|&r| r < start + width);
                 groups.push((j as u32, end as u32, rel.len()));
+                // Both row lists are sorted: one merge finds every position.
+                let mut p = 0;
                 for &r in &pattern[j..] {
-                    rel.push(position(r, start, width, below)? as u32);
+                    let at = if r < start + width {
+                        r - start
+                    } else {
+                        p += below[p..].iter().position(|&b| b >= r)?;
+                        if below[p] != r {
+                            return None;
+                        }
+                        width + p
+                    };
+                    rel.push(at as u32);
                 }
                 for &c in &pattern[j..end] {
                     column_start.push(val_ptr[s] + (c - start) * rows);
