@@ -8,7 +8,7 @@
 use crate::SolveError;
 use crate::selected_inverse::{LowerFactor, SelectedInverse, Supernodes};
 use crate::simplicial::{SimplicialCholesky, SimplicialSymbolic};
-use crate::supernodal::{SupernodalNumeric, supernodal_solve};
+use crate::supernodal::{SupernodalNumeric, backward_solve, supernodal_solve};
 use faer::dyn_stack::{MemBuffer, MemStack, StackReq};
 use faer::linalg::cholesky::llt::factor::{LltError, LltRegularization};
 use faer::sparse::linalg::SupernodalThreshold;
@@ -213,6 +213,13 @@ pub(crate) fn block_order(
     }
 }
 
+/// A solve of H x = b begun by [`SparseCholesky::factorize_and_begin_solve`].
+#[must_use]
+#[derive(Debug)]
+pub struct BegunSolve {
+    forwarded: bool,
+}
+
 /// A sparse Cholesky solver bound to one sparsity pattern.
 #[derive(Debug)]
 pub struct SparseCholesky {
@@ -250,7 +257,14 @@ impl std::fmt::Debug for FaerCholesky {
 }
 
 impl FaerCholesky {
-    fn factorize(&mut self, h: SparseColMatRef<'_, usize, f64>) -> Result<(), NotPositiveDefinite> {
+    /// Factorises H; with `forward`, also runs the forward substitution on
+    /// it where the factorisation can (Cairn's supernodal one), and says
+    /// whether it did.
+    fn factorize(
+        &mut self,
+        h: SparseColMatRef<'_, usize, f64>,
+        forward: Option<&mut [f64]>,
+    ) -> Result<bool, NotPositiveDefinite> {
         let regularization = LltRegularization {
             dynamic_regularization_delta: 0.0,
             dynamic_regularization_epsilon: 0.0,
@@ -258,7 +272,9 @@ impl FaerCholesky {
         if let (Some(numeric), SymbolicCholeskyRaw::Supernodal(symbolic)) =
             (&mut self.numeric, self.symbolic.raw())
         {
-            return numeric.factorize(symbolic, h.val(), &mut self.values);
+            let forwarded = forward.is_some();
+            numeric.factorize(symbolic, h.val(), &mut self.values, forward)?;
+            return Ok(forwarded);
         }
         self.symbolic
             .factorize_numeric_llt(
@@ -270,8 +286,19 @@ impl FaerCholesky {
                 MemStack::new(&mut self.scratch),
                 Default::default(),
             )
-            .map(|_| ())
+            .map(|_| false)
             .map_err(|LltError::NonPositivePivot { index }| NotPositiveDefinite { pivot: index })
+    }
+
+    /// Completes a solve whose forward substitution ran in the
+    /// factorisation if `forwarded`, else solves from the start.
+    fn finish_solve(&mut self, rhs: &mut [f64], forwarded: bool) {
+        match self.symbolic.raw() {
+            SymbolicCholeskyRaw::Supernodal(symbolic) if forwarded => {
+                backward_solve(symbolic, &self.values, rhs, &mut self.work)
+            }
+            _ => self.solve_in_place(rhs),
+        }
     }
 
     fn solve_in_place(&mut self, rhs: &mut [f64]) {
@@ -436,14 +463,47 @@ impl SparseCholesky {
         pattern: SymbolicSparseColMatRef<'_, usize>,
         values: &[f64],
     ) -> Result<(), NotPositiveDefinite> {
+        self.factorize_with(pattern, values, None).map(|_| ())
+    }
+
+    /// Factorises H and begins solving H x = `rhs` in place: for supernodal
+    /// factors the forward substitution runs inside the factorisation,
+    /// while each supernode's values are still in cache (one pass over L
+    /// fewer). [`Self::finish_solve`] on the same `rhs` completes it; after
+    /// an error `rhs` holds nothing useful.
+    pub fn factorize_and_begin_solve(
+        &mut self,
+        pattern: SymbolicSparseColMatRef<'_, usize>,
+        values: &[f64],
+        rhs: &mut [f64],
+    ) -> Result<BegunSolve, NotPositiveDefinite> {
+        let forwarded = self.factorize_with(pattern, values, Some(rhs))?;
+        Ok(BegunSolve { forwarded })
+    }
+
+    /// Completes the solve that [`Self::factorize_and_begin_solve`] began
+    /// on `rhs`.
+    pub fn finish_solve(&mut self, begun: BegunSolve, rhs: &mut [f64]) {
+        match &mut self.factor {
+            Factor::Simplicial(s) => s.solve_in_place(rhs),
+            Factor::Faer(f) => f.finish_solve(rhs, begun.forwarded),
+        }
+    }
+
+    fn factorize_with(
+        &mut self,
+        pattern: SymbolicSparseColMatRef<'_, usize>,
+        values: &[f64],
+        forward: Option<&mut [f64]>,
+    ) -> Result<bool, NotPositiveDefinite> {
         self.factored = false;
         let h = SparseColMatRef::new(pattern, values);
-        match &mut self.factor {
-            Factor::Simplicial(s) => s.factorize(h)?,
-            Factor::Faer(f) => f.factorize(h)?,
-        }
+        let forwarded = match &mut self.factor {
+            Factor::Simplicial(s) => s.factorize(h).map(|()| false)?,
+            Factor::Faer(f) => f.factorize(h, forward)?,
+        };
         self.factored = true;
-        Ok(())
+        Ok(forwarded)
     }
 
     /// H⁻¹ on the pattern of L, from the last successful factorisation

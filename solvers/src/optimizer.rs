@@ -353,23 +353,25 @@ impl Optimizer {
                 self.hessian[d] += lambda * self.damping[k];
             }
         }
-        let ok = cholesky
-            .factorize(self.structure.pattern.as_ref(), &self.hessian)
-            .is_ok();
+        for (s, g) in self.step.iter_mut().zip(&self.gradient) {
+            *s = -g;
+        }
+        let begun = cholesky.factorize_and_begin_solve(
+            self.structure.pattern.as_ref(),
+            &self.hessian,
+            &mut self.step,
+        );
         if lambda != 0.0 {
             for (k, &d) in self.structure.diagonal.iter().enumerate() {
                 self.hessian[d] = self.diagonal_backup[k];
             }
         }
         phases.factorize += since(t);
-        if !ok {
+        let Ok(begun) = begun else {
             return false;
-        }
+        };
         let t = Instant::now();
-        for (s, g) in self.step.iter_mut().zip(&self.gradient) {
-            *s = -g;
-        }
-        cholesky.solve_in_place(&mut self.step);
+        cholesky.finish_solve(begun, &mut self.step);
         phases.solve += since(t);
         self.step.iter().all(|s| s.is_finite())
     }

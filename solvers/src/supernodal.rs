@@ -20,7 +20,8 @@ use faer::linalg::triangular_solve::solve_lower_triangular_in_place;
 use faer::reborrow::*;
 use faer::sparse::SymbolicSparseColMatRef;
 use faer::sparse::linalg::cholesky::supernodal::SymbolicSupernodalCholesky;
-use faer::{Accum, MatMut, Par};
+use faer::{Accum, MatMut, MatRef, Par};
+use std::ops::Range;
 
 /// Where the entries of H go in L, and where each supernode's update goes.
 pub(crate) struct SupernodalNumeric {
@@ -38,6 +39,9 @@ pub(crate) struct SupernodalNumeric {
     column_start: Vec<usize>,
     /// One supernode's update, L₂₁L₂₁ᵀ (lower triangle, column-major).
     update: Vec<f64>,
+    /// The rows below one supernode's diagonal block, for the forward
+    /// substitution.
+    work: Vec<f64>,
     scratch: MemBuffer,
     par: Par,
 }
@@ -146,6 +150,7 @@ impl SupernodalNumeric {
             rel,
             column_start,
             update: vec![0.0; tallest * tallest],
+            work: vec![0.0; tallest],
             scratch: MemBuffer::try_new(req).ok()?,
             par,
         })
@@ -153,20 +158,25 @@ impl SupernodalNumeric {
 
     /// Factorises H, given by the values of its upper triangle, into
     /// `values` (faer's supernodal layout).
+    ///
+    /// With `forward`, also runs the forward substitution L y = `forward`
+    /// in place, each supernode right after it is factorised (while its
+    /// values are in cache); [`backward_solve`] then finishes the solve.
     pub(crate) fn factorize(
         &mut self,
         symbolic: &SymbolicSupernodalCholesky<usize>,
         h: &[f64],
         values: &mut [f64],
+        mut forward: Option<&mut [f64]>,
     ) -> Result<(), NotPositiveDefinite> {
         values.fill(0.0);
         for (&p, &x) in self.h_to_l.iter().zip(h) {
             values[p] = x;
         }
         let val_ptr = symbolic.col_ptr_for_val();
-        let mut next_row = 0;
+        let mut first_row = 0;
         for d in 0..symbolic.n_supernodes() {
-            let (start, width, rows, _) = supernode(symbolic, d);
+            let (start, width, rows, rows_below) = supernode(symbolic, d);
             let below = rows - width;
             let (done, later) = values.split_at_mut(val_ptr[d + 1]);
             let l = MatMut::from_column_major_slice_mut(&mut done[val_ptr[d]..], rows, width);
@@ -183,46 +193,61 @@ impl SupernodalNumeric {
                 pivot: index + start,
             })?;
             solve_lower_triangular_in_place(diagonal.rb(), l21.rb_mut().transpose_mut(), self.par);
-            if below == 0 {
-                continue;
+            if below > 0 {
+                let groups = self.group_start[d]..self.group_start[d + 1];
+                let column_start = first_row..first_row + below;
+                self.subtract_update(l21.rb(), groups, column_start, later, val_ptr[d + 1]);
+                first_row += below;
             }
-            let mut update = MatMut::from_column_major_slice_mut(
-                &mut self.update[..below * below],
-                below,
-                below,
-            );
-            matmul(
-                update.rb_mut(),
-                BlockStructure::TriangularLower,
-                Accum::Replace,
-                l21.rb(),
-                BlockStructure::Rectangular,
-                l21.rb().transpose(),
-                BlockStructure::Rectangular,
-                1.0,
-                self.par,
-            );
-            // Column j of the update goes to the column of row j of the
-            // pattern, in the supernode holding it; row i ≥ j to position
-            // rel[i] there.
-            let column_start = &self.column_start[next_row..next_row + below];
-            next_row += below;
-            for &(first, end, rel_start) in
-                &self.groups[self.group_start[d]..self.group_start[d + 1]]
-            {
-                let (first, end) = (first as usize, end as usize);
-                let rel = &self.rel[rel_start..rel_start + below - first];
-                for j in first..end {
-                    let rel = &rel[j - first..];
-                    let last = rel[rel.len() - 1] as usize;
-                    let target = &mut later[column_start[j] - val_ptr[d + 1]..][..=last];
-                    for (&r, &u) in rel.iter().zip(&self.update[j * below + j..(j + 1) * below]) {
-                        target[r as usize] -= u;
-                    }
-                }
+            if let Some(x) = forward.as_deref_mut() {
+                let l = &done[val_ptr[d]..];
+                forward_step(start, width, l, rows_below, x, &mut self.work[..below]);
             }
         }
         Ok(())
+    }
+
+    /// Subtracts a supernode's update L₂₁L₂₁ᵀ from the later supernodes'
+    /// columns, `later` (L's values from `offset` on), through its `groups`
+    /// and the `column_start` entries of its rows below.
+    fn subtract_update(
+        &mut self,
+        l21: MatRef<'_, f64>,
+        groups: Range<usize>,
+        column_start: Range<usize>,
+        later: &mut [f64],
+        offset: usize,
+    ) {
+        let below = l21.nrows();
+        let mut update =
+            MatMut::from_column_major_slice_mut(&mut self.update[..below * below], below, below);
+        matmul(
+            update.rb_mut(),
+            BlockStructure::TriangularLower,
+            Accum::Replace,
+            l21,
+            BlockStructure::Rectangular,
+            l21.transpose(),
+            BlockStructure::Rectangular,
+            1.0,
+            self.par,
+        );
+        // Column j of the update goes to the column of row j of the
+        // pattern, in the supernode holding it; row i ≥ j to position
+        // rel[i] there.
+        let column_start = &self.column_start[column_start];
+        for &(first, end, rel_start) in &self.groups[groups] {
+            let (first, end) = (first as usize, end as usize);
+            let rel = &self.rel[rel_start..rel_start + below - first];
+            for j in first..end {
+                let rel = &rel[j - first..];
+                let last = rel[rel.len() - 1] as usize;
+                let target = &mut later[column_start[j] - offset..][..=last];
+                for (&r, &u) in rel.iter().zip(&self.update[j * below + j..(j + 1) * below]) {
+                    target[r as usize] -= u;
+                }
+            }
+        }
     }
 }
 
@@ -245,52 +270,77 @@ pub(crate) fn dot_in_lanes(a: &[f64], b: &[f64]) -> f64 {
     lanes.iter().sum::<f64>() + tail
 }
 
-/// Solves L Lᵀ x = b in place for faer's supernodal factor L (unpermuted).
-/// faer's own solve multiplies each supernode through its general dense
-/// kernels, which on the small supernodes of pose graphs (3 to a few dozen
-/// columns) costs more than these loops. The rows below a supernode's
-/// diagonal block are gathered into `work` once, so the products with them
-/// run over contiguous memory.
+/// Supernode `s`'s first column, width, values (column-major, the
+/// diagonal block's rows first) and the rows below its diagonal block.
+fn supernode_values<'a>(
+    symbolic: &'a SymbolicSupernodalCholesky<usize>,
+    values: &'a [f64],
+    s: usize,
+) -> (usize, usize, &'a [f64], &'a [usize]) {
+    let (start, width, _, below) = supernode(symbolic, s);
+    let val_ptr = symbolic.col_ptr_for_val();
+    (start, width, &values[val_ptr[s]..val_ptr[s + 1]], below)
+}
+
+/// The forward substitution's step for one supernode (first column
+/// `start`, `width` columns, `values`, rows `below` under its diagonal
+/// block): solves its diagonal block, then subtracts its rows below from
+/// `x` (summed in `tmp` first, so that they are read contiguously).
+fn forward_step(
+    start: usize,
+    width: usize,
+    values: &[f64],
+    below: &[usize],
+    x: &mut [f64],
+    tmp: &mut [f64],
+) {
+    let rows = width + below.len();
+    tmp.fill(0.0);
+    for (j, column) in values[..rows * width].chunks_exact(rows).enumerate() {
+        let xj = x[start + j] / column[j];
+        x[start + j] = xj;
+        for (xi, &l) in x[start + j + 1..start + width]
+            .iter_mut()
+            .zip(&column[j + 1..width])
+        {
+            *xi -= l * xj;
+        }
+        for (t, &l) in tmp.iter_mut().zip(&column[width..]) {
+            *t += l * xj;
+        }
+    }
+    for (&r, &t) in below.iter().zip(tmp.iter()) {
+        x[r] -= t;
+    }
+}
+
+/// Solves L Lᵀ x = b in place for a supernodal factor L (unpermuted; faer's
+/// layout). faer's own solve multiplies each supernode through its general
+/// dense kernels, which on the small supernodes of pose graphs (3 to a few
+/// dozen columns) costs more than these loops.
 pub(crate) fn supernodal_solve(
     symbolic: &SymbolicSupernodalCholesky<usize>,
     values: &[f64],
     x: &mut [f64],
     work: &mut [f64],
 ) {
-    let (begin, end) = (symbolic.supernode_begin(), symbolic.supernode_end());
-    let (val_ptr, row_ptr) = (symbolic.col_ptr_for_val(), symbolic.col_ptr_for_row_idx());
-    // Supernode s: its first column, its width, its values (column-major,
-    // the diagonal block's rows first) and the rows below the diagonal block.
-    let supernode = |s: usize| {
-        let (start, size) = (begin[s], end[s] - begin[s]);
-        let values = &values[val_ptr[s]..val_ptr[s + 1]];
-        let rows = values.len() / size;
-        let below = &symbolic.row_idx()[row_ptr[s]..][..rows - size];
-        (start, size, rows, values, below)
-    };
-    for s in 0..begin.len() {
-        let (start, size, rows, values, below) = supernode(s);
-        let tmp = &mut work[..below.len()];
-        tmp.fill(0.0);
-        for (j, column) in values.chunks_exact(rows).enumerate() {
-            let xj = x[start + j] / column[j];
-            x[start + j] = xj;
-            for (xi, &l) in x[start + j + 1..start + size]
-                .iter_mut()
-                .zip(&column[j + 1..size])
-            {
-                *xi -= l * xj;
-            }
-            for (t, &l) in tmp.iter_mut().zip(&column[size..]) {
-                *t += l * xj;
-            }
-        }
-        for (&r, &t) in below.iter().zip(tmp.iter()) {
-            x[r] -= t;
-        }
+    for s in 0..symbolic.n_supernodes() {
+        let (start, width, values, below) = supernode_values(symbolic, values, s);
+        forward_step(start, width, values, below, x, &mut work[..below.len()]);
     }
-    for s in (0..begin.len()).rev() {
-        let (start, size, rows, values, below) = supernode(s);
+    backward_solve(symbolic, values, x, work);
+}
+
+/// Solves Lᵀ x = y in place (the second half of [`supernodal_solve`]).
+pub(crate) fn backward_solve(
+    symbolic: &SymbolicSupernodalCholesky<usize>,
+    values: &[f64],
+    x: &mut [f64],
+    work: &mut [f64],
+) {
+    for s in (0..symbolic.n_supernodes()).rev() {
+        let (start, size, values, below) = supernode_values(symbolic, values, s);
+        let rows = size + below.len();
         let tmp = &mut work[..below.len()];
         for (t, &r) in tmp.iter_mut().zip(below) {
             *t = x[r];

@@ -70,7 +70,9 @@ fn supernodal_factor_matches_faer() {
         let mut numeric = SupernodalNumeric::new(supernodal, pattern.as_ref(), Par::Seq).unwrap();
         let mut ours = vec![f64::NAN; symbolic.len_val()];
         let want = faer_factor(&symbolic, &pattern, &values).unwrap();
-        numeric.factorize(supernodal, &values, &mut ours).unwrap();
+        numeric
+            .factorize(supernodal, &values, &mut ours, None)
+            .unwrap();
         for (a, b) in ours.iter().zip(&want) {
             assert!((a - b).abs() <= 1e-12 * (1.0 + b.abs()), "{a} vs {b}");
         }
@@ -81,13 +83,16 @@ fn supernodal_factor_matches_faer() {
         let kept = values[diagonal];
         values[diagonal] = -1.0;
         let pivot = faer_factor(&symbolic, &pattern, &values).unwrap_err();
+        let mut rhs = vec![1.0; n];
         let err = numeric
-            .factorize(supernodal, &values, &mut ours)
+            .factorize(supernodal, &values, &mut ours, Some(&mut rhs))
             .unwrap_err();
         assert_eq!(err, NotPositiveDefinite { pivot });
         failures += 1;
         values[diagonal] = kept;
-        numeric.factorize(supernodal, &values, &mut ours).unwrap();
+        numeric
+            .factorize(supernodal, &values, &mut ours, None)
+            .unwrap();
         assert!(
             ours.iter()
                 .zip(&want)
@@ -97,9 +102,9 @@ fn supernodal_factor_matches_faer() {
     assert_eq!(failures, 200);
 }
 
-/// The supernodal factor and solve (Cairn's, on faer's structure) give
-/// the simplicial factor's solution, and H x = b, on random block
-/// matrices of up to a few hundred columns.
+/// The supernodal factor and solve (Cairn's, on faer's structure), begun
+/// in the factorisation or not, give the simplicial factor's solution, and
+/// H x = b, on random block matrices of up to a few hundred columns.
 #[test]
 fn supernodal_solve_matches_the_simplicial_one() {
     use crate::linear::{Factorization, LinearSolverConfig, SparseCholesky};
@@ -119,6 +124,15 @@ fn supernodal_solve_matches_the_simplicial_one() {
             c.factorize(scalar.as_ref(), &values).unwrap();
             let mut x = b.clone();
             assert!(c.solve_in_place(&mut x));
+            // The solve begun in the factorisation gives the same x.
+            let mut y = b.clone();
+            let begun = c
+                .factorize_and_begin_solve(scalar.as_ref(), &values, &mut y)
+                .unwrap();
+            c.finish_solve(begun, &mut y);
+            for (a, b) in x.iter().zip(&y) {
+                assert!((a - b).abs() <= 1e-12 * (1.0 + b.abs()), "{a} vs {b}");
+            }
             (x, c.is_supernodal())
         };
         let (x, supernodal) = solve(Factorization::Supernodal);
