@@ -217,22 +217,31 @@ impl BinaryEdge<6, 6, 6> for EdgeSE3 {
     /// E·(B⁻¹Δ⁻¹B), a local step δ' = M·δ with
     /// M = [[−R_Bᵀ, 2·R_Bᵀ\[t_B\]×], [0, −R_Bᵀ]], so Jᵢ = Jⱼ·M.
     fn jacobians(&self, xi: &SE3, xj: &SE3) -> (Matrix6<f64>, Matrix6<f64>) {
+        let (_, ji, jj) = self.linearize(xi, xj);
+        (ji, jj)
+    }
+
+    /// The error and both Jacobians from one B and E, block by block:
+    /// Jᵢ = Jⱼ·M = [[−R_E·R_Bᵀ, 2·R_E·R_Bᵀ\[t_B\]×], [0, −(w·I + \[v\]×)·R_Bᵀ]].
+    fn linearize(&self, xi: &SE3, xj: &SE3) -> Linearized<6, 6, 6> {
         let b = xi.between(xj);
         let e = self.inverse.compose(&b);
         let q = canonical(&e.q);
-        let mut jj = Matrix6::zeros();
-        jj.fixed_view_mut::<3, 3>(0, 0).copy_from(&e.rotation());
         let v = Vector3::new(q.i, q.j, q.k);
-        jj.fixed_view_mut::<3, 3>(3, 3)
-            .copy_from(&(Matrix3::identity() * q.w + skew(&v)));
-
+        let re = e.rotation();
+        let qv = Matrix3::identity() * q.w + skew(&v);
         let rbt = b.rotation().transpose();
-        let mut m = Matrix6::zeros();
-        m.fixed_view_mut::<3, 3>(0, 0).copy_from(&(-rbt));
-        m.fixed_view_mut::<3, 3>(0, 3)
-            .copy_from(&(rbt * skew(&b.t) * 2.0));
-        m.fixed_view_mut::<3, 3>(3, 3).copy_from(&(-rbt));
-        (jj * m, jj)
+        let re_rbt = re * rbt;
+        let mut jj = Matrix6::zeros();
+        jj.fixed_view_mut::<3, 3>(0, 0).copy_from(&re);
+        jj.fixed_view_mut::<3, 3>(3, 3).copy_from(&qv);
+        let mut ji = Matrix6::zeros();
+        ji.fixed_view_mut::<3, 3>(0, 0).copy_from(&(-re_rbt));
+        ji.fixed_view_mut::<3, 3>(0, 3)
+            .copy_from(&(re_rbt * skew(&b.t) * 2.0));
+        ji.fixed_view_mut::<3, 3>(3, 3).copy_from(&(-(qv * rbt)));
+        let error = Vector6::new(e.t.x, e.t.y, e.t.z, v.x, v.y, v.z);
+        (error, ji, jj)
     }
 
     fn predict_second(&self, xi: &SE3) -> Option<SE3> {
