@@ -23,21 +23,22 @@ use serde::{Deserialize, Serialize};
 /// Multiple of faer's flops-per-non-zero threshold (40) above which
 /// [`Factorization::Auto`] goes supernodal, by measurement (BENCHMARKS.md).
 /// Flops per factor value on the benchmark files: the 2D files 5–13, the
-/// M3500 family 18.8, simulation-pose-pose 19.7, parking-garage 27,
-/// intel_slamcourse 31 (Cairn's simplicial factorisation, which forms each
-/// block's rows together, solves all of these faster: the M3500 family by
-/// 20–27%, parking-garage by 11%, intel_slamcourse by 9%); city10000 42,
-/// smallGrid3D 51 and the 3D spheres and torus 130–213 (faer's supernodal
-/// one 1.1–2.4× faster). At 0.9 (36) each file gets its faster kind. Large
-/// factors fall out of cache row by row: on the generated Manhattan worlds
-/// (above 16 flops per value) simplicial factorises 10⁴ poses (0.46 million
-/// values) as fast, 3·10⁴ (3 million) 25% slower and 10⁵ (14 million) 4×
-/// slower, so from [`AUTO_LARGE_FACTOR`] values the threshold is
-/// [`AUTO_SUPERNODAL_THRESHOLD_LOW`].
-const AUTO_SUPERNODAL_THRESHOLD: f64 = 0.9;
+/// M3500 family 18.8 and simulation-pose-pose 19.7 (Cairn's simplicial
+/// factorisation, which forms each block's rows together, solves these
+/// faster: the M3500 family by 8–11%); parking-garage 27, intel_slamcourse
+/// 31, city10000 42, smallGrid3D 51 and the 3D spheres and torus 130–213
+/// (the supernodal one faster: parking-garage by 5%, intel_slamcourse by
+/// 12%, city10000 1.8×, the 3D files 3–4×, since session 28's supernodal
+/// factorisation; before it the threshold was 36). At 0.6 (24) each file
+/// gets its faster kind. Large factors fall out of cache row by row: on the
+/// generated Manhattan worlds (above 16 flops per value) simplicial
+/// factorises 10⁴ poses (0.46 million values) as fast, 3·10⁴ (3 million)
+/// 25% slower and 10⁵ (14 million) 4× slower, so from [`AUTO_LARGE_FACTOR`]
+/// values the threshold is [`AUTO_SUPERNODAL_THRESHOLD_LOW`].
+const AUTO_SUPERNODAL_THRESHOLD: f64 = 0.6;
 
 /// Factor values from which [`Factorization::Auto`] goes supernodal from 16
-/// flops per value instead of 36.
+/// flops per value instead of 24.
 const AUTO_LARGE_FACTOR: usize = 1_000_000;
 
 /// The same (16 flops per value) for factors of [`AUTO_LARGE_FACTOR`] values
@@ -63,7 +64,7 @@ fn simplicial_pays(symbolic: &SimplicialSymbolic) -> bool {
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize, Deserialize)]
 pub enum Factorization {
     /// Chosen from the flop count of the symbolic analysis: supernodal when
-    /// the factor has dense fronts (from 36 flops per value, 16 for factors of
+    /// the factor has dense fronts (from 24 flops per value, 16 for factors of
     /// a million values or more, by measurement).
     #[default]
     Auto,
