@@ -24,10 +24,13 @@ pub(crate) fn random_h(
         let (a, b) = (rng.random_range(0..nb), rng.random_range(0..nb));
         rows[a.max(b)].push(a.min(b));
     }
-    let mut first = vec![0];
-    for &d in &dims {
-        first.push(first.last().unwrap() + d);
-    }
+    // Each block's first scalar column, and the dimension at the end.
+    let first: Vec<usize> = std::iter::once(0)
+        .chain(dims.iter().scan(0, |end, &d| {
+            *end += d;
+            Some(*end)
+        }))
+        .collect();
     let (mut bp, mut bi, mut sp, mut si) = (vec![0], vec![], vec![0], vec![]);
     for (c, r) in rows.iter_mut().enumerate() {
         r.sort_unstable();
