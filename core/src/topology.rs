@@ -85,7 +85,12 @@ impl Graph {
     /// (its lowest-id vertex if it has no pose). Deterministic, unlike g2o's
     /// choice of an arbitrary vertex.
     pub fn gauge_vertices(&self) -> Vec<usize> {
-        let comps = self.components();
+        self.gauge_vertices_of(&self.components())
+    }
+
+    /// [`Graph::gauge_vertices`] given the graph's [`Graph::components`], for
+    /// callers that need both.
+    pub fn gauge_vertices_of(&self, comps: &Components) -> Vec<usize> {
         let mut anchored = vec![false; comps.count];
         for v in self.vertices() {
             if v.fixed {

@@ -99,7 +99,8 @@ impl Optimizer {
     /// lowest-id pose fixed too.
     pub fn new(graph: &Graph, config: SolverConfig) -> Result<Self, SolveError> {
         let start = Instant::now();
-        let gauge_vertices = graph.gauge_vertices();
+        let components = graph.components();
+        let gauge_vertices = graph.gauge_vertices_of(&components);
         let mut fixed: Vec<bool> = (0..graph.num_vertices())
             .map(|v| graph.is_fixed(v))
             .collect();
@@ -132,7 +133,7 @@ impl Optimizer {
             backup: graph.values().params().to_vec(),
             free,
             gauge: gauge_vertices.iter().map(|&v| graph.vertex(v).id).collect(),
-            components: graph.components().count,
+            components: components.count,
             shape: (graph.num_vertices(), graph.num_edges()),
             structure,
             cholesky,
