@@ -7,8 +7,10 @@
 //! L₂₁L₂₁ᵀ in one dense product and subtracts it from the later supernodes'
 //! columns. faer's own numeric factorisation is left-looking: each supernode
 //! gathers the updates of its descendants one product at a time. On pose
-//! graphs, whose supernodes are narrow, one product per supernode is 15–20%
-//! faster (BENCHMARKS.md) and gives the same values.
+//! graphs, whose supernodes are narrow, one product per supernode is 15–25%
+//! faster (BENCHMARKS.md) and gives the same values. The forward
+//! substitution of a solve can run inside the factorisation, each supernode
+//! right after it is factorised, while its values are still in cache.
 
 use crate::linear::NotPositiveDefinite;
 use faer::dyn_stack::{MemBuffer, MemStack};
