@@ -243,7 +243,8 @@ struct FaerCholesky {
     /// when there is no permutation (every ordering but scalar AMD).
     numeric: Option<Box<SupernodalNumeric>>,
     values: Vec<f64>,
-    /// Rows below one supernode's diagonal block, for the solves.
+    /// Rows below one supernode's diagonal block, for the solves (the
+    /// forward substitution in the factorisation too).
     work: Vec<f64>,
     scratch: MemBuffer,
     par: Par,
@@ -266,17 +267,18 @@ impl FaerCholesky {
         h: SparseColMatRef<'_, usize, f64>,
         forward: Option<&mut [f64]>,
     ) -> Result<bool, NotPositiveDefinite> {
-        let regularization = LltRegularization {
-            dynamic_regularization_delta: 0.0,
-            dynamic_regularization_epsilon: 0.0,
-        };
         if let (Some(numeric), SymbolicCholeskyRaw::Supernodal(symbolic)) =
             (&mut self.numeric, self.symbolic.raw())
         {
             let forwarded = forward.is_some();
+            let forward = forward.map(|x| (x, &mut self.work[..]));
             numeric.factorize(symbolic, h.val(), &mut self.values, forward)?;
             return Ok(forwarded);
         }
+        let regularization = LltRegularization {
+            dynamic_regularization_delta: 0.0,
+            dynamic_regularization_epsilon: 0.0,
+        };
         self.symbolic
             .factorize_numeric_llt(
                 &mut self.values,

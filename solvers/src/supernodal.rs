@@ -41,9 +41,6 @@ pub(crate) struct SupernodalNumeric {
     column_start: Vec<usize>,
     /// One supernode's update, L₂₁L₂₁ᵀ (lower triangle, column-major).
     update: Vec<f64>,
-    /// The rows below one supernode's diagonal block, for the forward
-    /// substitution.
-    work: Vec<f64>,
     scratch: MemBuffer,
     par: Par,
 }
@@ -152,7 +149,6 @@ impl SupernodalNumeric {
             rel,
             column_start,
             update: vec![0.0; tallest * tallest],
-            work: vec![0.0; tallest],
             scratch: MemBuffer::try_new(req).ok()?,
             par,
         })
@@ -161,15 +157,17 @@ impl SupernodalNumeric {
     /// Factorises H, given by the values of its upper triangle, into
     /// `values` (faer's supernodal layout).
     ///
-    /// With `forward`, also runs the forward substitution L y = `forward`
-    /// in place, each supernode right after it is factorised (while its
-    /// values are in cache); [`backward_solve`] then finishes the solve.
+    /// With `forward` (the right-hand side, and room for the rows below any
+    /// one supernode's diagonal block, as the solves take), also runs the
+    /// forward substitution L y = b in place, each supernode right after it
+    /// is factorised (while its values are in cache); [`backward_solve`]
+    /// then finishes the solve.
     pub(crate) fn factorize(
         &mut self,
         symbolic: &SymbolicSupernodalCholesky<usize>,
         h: &[f64],
         values: &mut [f64],
-        mut forward: Option<&mut [f64]>,
+        mut forward: Option<(&mut [f64], &mut [f64])>,
     ) -> Result<(), NotPositiveDefinite> {
         values.fill(0.0);
         for (&p, &x) in self.h_to_l.iter().zip(h) {
@@ -201,9 +199,9 @@ impl SupernodalNumeric {
                 self.subtract_update(l21.rb(), groups, column_start, later, val_ptr[d + 1]);
                 first_row += below;
             }
-            if let Some(x) = forward.as_deref_mut() {
+            if let Some((x, work)) = forward.as_mut() {
                 let l = &done[val_ptr[d]..];
-                forward_step(start, width, l, rows_below, x, &mut self.work[..below]);
+                forward_step(start, width, l, rows_below, x, &mut work[..below]);
             }
         }
         Ok(())

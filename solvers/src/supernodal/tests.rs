@@ -104,9 +104,9 @@ fn supernodal_factor_matches_faer() {
         let kept = values[diagonal];
         values[diagonal] = -1.0;
         let pivot = faer_factor(&symbolic, &pattern, &values).unwrap_err();
-        let mut rhs = vec![1.0; n];
+        let (mut rhs, mut work) = (vec![1.0; n], vec![0.0; n]);
         let err = numeric
-            .factorize(supernodal, &values, &mut ours, Some(&mut rhs))
+            .factorize(supernodal, &values, &mut ours, Some((&mut rhs, &mut work)))
             .unwrap_err();
         assert_eq!(err, NotPositiveDefinite { pivot });
         failures += 1;
