@@ -1,14 +1,14 @@
 //! Sparse Cholesky of the Hessian: symbolic analysis once, numeric
-//! factorisation per iteration into reused buffers. Supernodal factors have
-//! faer's symbolic structure and Cairn's numeric factorisation and solves
-//! (the `supernodal` module; faer's own numeric one under faer's scalar AMD
-//! ordering); simplicial ones are Cairn's block-aware code (the `simplicial`
-//! module).
+//! factorisation per iteration into reused buffers. Both kinds of factor
+//! are Cairn's block-aware code, analysed on the vertex blocks: simplicial
+//! (the `simplicial` module) and supernodal (the `supernodal` module, with
+//! faer's dense kernels). Under faer's scalar AMD ordering the factor is
+//! faer's own.
 
 use crate::SolveError;
 use crate::selected_inverse::{LowerFactor, SelectedInverse, Supernodes};
 use crate::simplicial::{SimplicialCholesky, SimplicialSymbolic};
-use crate::supernodal::{SupernodalNumeric, backward_solve, supernodal_solve};
+use crate::supernodal::{SupernodalCholesky, SupernodalSymbolic};
 use faer::dyn_stack::{MemBuffer, MemStack, StackReq};
 use faer::linalg::cholesky::llt::factor::{LltError, LltRegularization};
 use faer::sparse::linalg::SupernodalThreshold;
@@ -71,7 +71,8 @@ pub enum Factorization {
     /// Column by column (Cairn's, on the vertex blocks; faer's under
     /// [`Ordering::Amd`]); best for very sparse factors.
     Simplicial,
-    /// Dense blocks of columns (faer's); best when the factor has dense fronts.
+    /// Dense blocks of columns (faer's under [`Ordering::Amd`]); best when
+    /// the factor has dense fronts.
     Supernodal,
 }
 
@@ -123,6 +124,15 @@ pub struct Blocks<'a> {
     pub dims: &'a [usize],
     /// Whether each block is a pose (the others are landmarks).
     pub is_pose: &'a [bool],
+}
+
+/// faer's parallelism for the dense kernels.
+fn par(config: &LinearSolverConfig) -> Par {
+    if config.parallel {
+        Par::rayon(0)
+    } else {
+        Par::Seq
+    }
 }
 
 /// Approximate minimum degree order of the blocks of `pattern`.
@@ -228,24 +238,19 @@ pub struct SparseCholesky {
     factored: bool,
 }
 
-/// Cairn's block-aware simplicial factor, or faer's (supernodal, or under
+/// Cairn's block-aware factors, simplicial or supernodal, or faer's (under
 /// faer's own scalar AMD ordering).
 #[derive(Debug)]
 enum Factor {
     Simplicial(SimplicialCholesky),
+    Supernodal(Box<SupernodalCholesky>),
     Faer(FaerCholesky),
 }
 
 /// faer's factor with its symbolic analysis and work space.
 struct FaerCholesky {
     symbolic: SymbolicCholesky<usize>,
-    /// Cairn's numeric factorisation on faer's supernodal structure, used
-    /// when there is no permutation (every ordering but scalar AMD).
-    numeric: Option<Box<SupernodalNumeric>>,
     values: Vec<f64>,
-    /// Rows below one supernode's diagonal block, for the solves (the
-    /// forward substitution in the factorisation too).
-    work: Vec<f64>,
     scratch: MemBuffer,
     par: Par,
 }
@@ -259,22 +264,7 @@ impl std::fmt::Debug for FaerCholesky {
 }
 
 impl FaerCholesky {
-    /// Factorises H; with `forward`, also runs the forward substitution on
-    /// it where the factorisation can (Cairn's supernodal one), and says
-    /// whether it did.
-    fn factorize(
-        &mut self,
-        h: SparseColMatRef<'_, usize, f64>,
-        forward: Option<&mut [f64]>,
-    ) -> Result<bool, NotPositiveDefinite> {
-        if let (Some(numeric), SymbolicCholeskyRaw::Supernodal(symbolic)) =
-            (&mut self.numeric, self.symbolic.raw())
-        {
-            let forwarded = forward.is_some();
-            let forward = forward.map(|x| (x, &mut self.work[..]));
-            numeric.factorize(symbolic, h.val(), &mut self.values, forward)?;
-            return Ok(forwarded);
-        }
+    fn factorize(&mut self, h: SparseColMatRef<'_, usize, f64>) -> Result<(), NotPositiveDefinite> {
         let regularization = LltRegularization {
             dynamic_regularization_delta: 0.0,
             dynamic_regularization_epsilon: 0.0,
@@ -289,27 +279,11 @@ impl FaerCholesky {
                 MemStack::new(&mut self.scratch),
                 Default::default(),
             )
-            .map(|_| false)
+            .map(|_| ())
             .map_err(|LltError::NonPositivePivot { index }| NotPositiveDefinite { pivot: index })
     }
 
-    /// Completes a solve whose forward substitution ran in the
-    /// factorisation if `forwarded`, else solves from the start.
-    fn finish_solve(&mut self, rhs: &mut [f64], forwarded: bool) {
-        match self.symbolic.raw() {
-            SymbolicCholeskyRaw::Supernodal(symbolic) if forwarded => {
-                backward_solve(symbolic, &self.values, rhs, &mut self.work)
-            }
-            _ => self.solve_in_place(rhs),
-        }
-    }
-
     fn solve_in_place(&mut self, rhs: &mut [f64]) {
-        if let (SymbolicCholeskyRaw::Supernodal(symbolic), None) =
-            (self.symbolic.raw(), self.symbolic.perm())
-        {
-            return supernodal_solve(symbolic, &self.values, rhs, &mut self.work);
-        }
         let llt = LltRef::new(&self.symbolic, &self.values);
         let n = rhs.len();
         let x = MatMut::from_column_major_slice_mut(rhs, n, 1);
@@ -351,8 +325,8 @@ impl SparseCholesky {
     /// upper triangle of its vertex blocks, `block_pattern`, with each
     /// block's size in `block_dims`. Block orderings are the caller's to
     /// apply (by numbering the blocks in `block_order`); only
-    /// [`Ordering::Amd`] is left to faer. A simplicial factor is Cairn's block-aware one
-    /// (the `simplicial` module), a supernodal one on faer's structure.
+    /// [`Ordering::Amd`] is left to faer, whose factor it then is; under the
+    /// others the factor is Cairn's, analysed on the blocks.
     pub fn analyze(
         pattern: SymbolicSparseColMatRef<'_, usize>,
         block_pattern: SymbolicSparseColMatRef<'_, usize>,
@@ -367,24 +341,13 @@ impl SparseCholesky {
             };
             Self::faer(pattern, SymmetricOrdering::Amd, threshold, config)?
         } else {
+            let blocks = SimplicialSymbolic::analyze(block_pattern, block_dims)?;
             let simplicial = match config.factorization {
-                Factorization::Supernodal => None,
-                Factorization::Simplicial => {
-                    Some(SimplicialSymbolic::analyze(block_pattern, block_dims)?)
-                }
-                Factorization::Auto => {
-                    let symbolic = SimplicialSymbolic::analyze(block_pattern, block_dims)?;
-                    simplicial_pays(&symbolic).then_some(symbolic)
-                }
+                Factorization::Supernodal => false,
+                Factorization::Simplicial => true,
+                Factorization::Auto => simplicial_pays(&blocks),
             };
-            match simplicial.and_then(SimplicialCholesky::new) {
-                Some(simplicial) => Factor::Simplicial(simplicial),
-                // Supernodal, or too large for Cairn's u32 row indices.
-                None => {
-                    let force = SupernodalThreshold::FORCE_SUPERNODAL;
-                    Self::faer(pattern, SymmetricOrdering::Identity, force, config)?
-                }
-            }
+            Self::blockwise(blocks, simplicial, pattern, par(config))?
         };
         Ok(Self {
             factor,
@@ -392,7 +355,28 @@ impl SparseCholesky {
         })
     }
 
-    /// faer's symbolic analysis and work space.
+    /// Cairn's factor on the block analysis `blocks`: simplicial if asked
+    /// and H's dimension fits its `u32` row indices, else supernodal unless
+    /// the supernodal plan would outgrow the factor.
+    fn blockwise(
+        blocks: SimplicialSymbolic,
+        simplicial: bool,
+        pattern: SymbolicSparseColMatRef<'_, usize>,
+        par: Par,
+    ) -> Result<Factor, SolveError> {
+        let dim = blocks.dim();
+        if !simplicial || u32::try_from(dim).is_err() {
+            let symbolic = SupernodalSymbolic::from_blocks(&blocks)?;
+            if let Some(factor) = SupernodalCholesky::new(symbolic, pattern, par) {
+                return Ok(Factor::Supernodal(Box::new(factor)));
+            }
+        }
+        SimplicialCholesky::new(blocks)
+            .map(Factor::Simplicial)
+            .ok_or(SolveError::TooLarge { entries: dim })
+    }
+
+    /// faer's symbolic analysis (under its scalar AMD) and work space.
     fn faer(
         pattern: SymbolicSparseColMatRef<'_, usize>,
         ordering: SymmetricOrdering<'_, usize>,
@@ -405,41 +389,14 @@ impl SparseCholesky {
         };
         let symbolic = factorize_symbolic_cholesky(pattern, Side::Upper, ordering, params)
             .map_err(|e| SolveError::Analysis(format!("{e:?}")))?;
-        let par = if config.parallel {
-            Par::rayon(0)
-        } else {
-            Par::Seq
-        };
-        let numeric = match (symbolic.raw(), symbolic.perm()) {
-            (SymbolicCholeskyRaw::Supernodal(s), None) => {
-                SupernodalNumeric::new(s, pattern, par).map(Box::new)
-            }
-            _ => None,
-        };
-        // faer's work space serves only faer's own factorisation and solves.
-        let req = match numeric {
-            Some(_) => StackReq::EMPTY,
-            None => StackReq::any_of(&[
-                symbolic.factorize_numeric_llt_scratch::<f64>(par, Default::default()),
-                symbolic.solve_in_place_scratch::<f64>(1, par),
-            ]),
-        };
+        let par = par(config);
+        let req = StackReq::any_of(&[
+            symbolic.factorize_numeric_llt_scratch::<f64>(par, Default::default()),
+            symbolic.solve_in_place_scratch::<f64>(1, par),
+        ]);
         let scratch = MemBuffer::try_new(req).map_err(|_| SolveError::OutOfMemory)?;
-        let work = match symbolic.raw() {
-            SymbolicCholeskyRaw::Supernodal(s) => (0..s.n_supernodes())
-                .map(|k| {
-                    let size = s.supernode_end()[k] - s.supernode_begin()[k];
-                    let values = s.col_ptr_for_val()[k + 1] - s.col_ptr_for_val()[k];
-                    values / size - size
-                })
-                .max()
-                .unwrap_or(0),
-            SymbolicCholeskyRaw::Simplicial(_) => 0,
-        };
         Ok(Factor::Faer(FaerCholesky {
-            numeric,
             values: vec![0.0; symbolic.len_val()],
-            work: vec![0.0; work],
             symbolic,
             scratch,
             par,
@@ -448,14 +405,18 @@ impl SparseCholesky {
 
     /// Whether the factor is supernodal.
     pub fn is_supernodal(&self) -> bool {
-        matches!(&self.factor, Factor::Faer(f)
-            if matches!(f.symbolic.raw(), SymbolicCholeskyRaw::Supernodal(_)))
+        match &self.factor {
+            Factor::Simplicial(_) => false,
+            Factor::Supernodal(_) => true,
+            Factor::Faer(f) => matches!(f.symbolic.raw(), SymbolicCholeskyRaw::Supernodal(_)),
+        }
     }
 
     /// Number of stored values of the factor L.
     pub fn factor_nnz(&self) -> usize {
         match &self.factor {
             Factor::Simplicial(s) => s.len_val(),
+            Factor::Supernodal(s) => s.len_val(),
             Factor::Faer(f) => f.values.len(),
         }
     }
@@ -489,7 +450,9 @@ impl SparseCholesky {
     pub fn finish_solve(&mut self, begun: BegunSolve, rhs: &mut [f64]) {
         match &mut self.factor {
             Factor::Simplicial(s) => s.solve_in_place(rhs),
-            Factor::Faer(f) => f.finish_solve(rhs, begun.forwarded),
+            Factor::Supernodal(s) if begun.forwarded => s.backward_solve(rhs),
+            Factor::Supernodal(s) => s.solve_in_place(rhs),
+            Factor::Faer(f) => f.solve_in_place(rhs),
         }
     }
 
@@ -503,7 +466,11 @@ impl SparseCholesky {
         let h = SparseColMatRef::new(pattern, values);
         let forwarded = match &mut self.factor {
             Factor::Simplicial(s) => s.factorize(h).map(|()| false)?,
-            Factor::Faer(f) => f.factorize(h, forward)?,
+            Factor::Supernodal(s) => {
+                let forwarded = forward.is_some();
+                s.factorize(values, forward).map(|()| forwarded)?
+            }
+            Factor::Faer(f) => f.factorize(h).map(|()| false)?,
         };
         self.factored = true;
         Ok(forwarded)
@@ -517,6 +484,7 @@ impl SparseCholesky {
         }
         Some(match &self.factor {
             Factor::Simplicial(s) => SelectedInverse::from_columns(s.lower_factor(), None),
+            Factor::Supernodal(s) => SelectedInverse::from_supernodes(s.supernodes(), None),
             Factor::Faer(f) => f.selected_inverse(),
         })
     }
@@ -529,6 +497,7 @@ impl SparseCholesky {
         }
         match &mut self.factor {
             Factor::Simplicial(s) => s.solve_in_place(rhs),
+            Factor::Supernodal(s) => s.solve_in_place(rhs),
             Factor::Faer(f) => f.solve_in_place(rhs),
         }
         true

@@ -138,8 +138,18 @@ impl SimplicialSymbolic {
     }
 
     /// The blocks below the diagonal block in block column `b`.
-    fn below(&self, b: usize) -> &[u32] {
+    pub(crate) fn below(&self, b: usize) -> &[u32] {
         &self.col_blocks[self.col_start[b]..self.col_start[b + 1]]
+    }
+
+    /// The block columns J < `k` with L[k, J] ≠ 0, ascending.
+    pub(crate) fn row(&self, k: usize) -> &[u32] {
+        &self.row_blocks[self.row_start[k]..self.row_start[k + 1]]
+    }
+
+    /// First scalar column of each block, and the dimension at the end.
+    pub(crate) fn block_column(&self) -> &[usize] {
+        &self.block_column
     }
 }
 

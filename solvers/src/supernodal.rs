@@ -1,5 +1,7 @@
-//! Cairn's numeric factorisation and solves on faer's supernodal symbolic
-//! structure (its supernodes, row patterns and value layout).
+//! Cairn's supernodal Cholesky: its structure, found on the vertex blocks
+//! (the `symbolic` module: faer's supernodes and layout, without faer's
+//! scalar analysis), and its numeric factorisation and solves, with faer's
+//! dense kernels for each supernode.
 //!
 //! The factorisation is right-looking: each supernode, once its columns
 //! hold all their updates, is factorised (dense Cholesky of its diagonal
@@ -13,6 +15,7 @@
 //! right after it is factorised, while its values are still in cache.
 
 use crate::linear::NotPositiveDefinite;
+use crate::structure::group_by_key;
 use faer::dyn_stack::{MemBuffer, MemStack};
 use faer::linalg::cholesky::llt::factor::{
     LltError, LltRegularization, cholesky_in_place, cholesky_in_place_scratch,
@@ -21,9 +24,11 @@ use faer::linalg::matmul::triangular::{BlockStructure, matmul};
 use faer::linalg::triangular_solve::solve_lower_triangular_in_place;
 use faer::reborrow::*;
 use faer::sparse::SymbolicSparseColMatRef;
-use faer::sparse::linalg::cholesky::supernodal::SymbolicSupernodalCholesky;
 use faer::{Accum, MatMut, MatRef, Par};
 use std::ops::Range;
+
+mod symbolic;
+pub(crate) use symbolic::SupernodalSymbolic;
 
 /// Where the entries of H go in L, and where each supernode's update goes.
 pub(crate) struct SupernodalNumeric {
@@ -45,20 +50,6 @@ pub(crate) struct SupernodalNumeric {
     par: Par,
 }
 
-/// Supernode `s`'s first column, width, number of rows (the diagonal
-/// block's and those below) and the rows below.
-fn supernode(
-    symbolic: &SymbolicSupernodalCholesky<usize>,
-    s: usize,
-) -> (usize, usize, usize, &[usize]) {
-    let (start, end) = (symbolic.supernode_begin()[s], symbolic.supernode_end()[s]);
-    let val_ptr = symbolic.col_ptr_for_val();
-    let width = end - start;
-    let rows = (val_ptr[s + 1] - val_ptr[s]) / width;
-    let below = &symbolic.row_idx()[symbolic.col_ptr_for_row_idx()[s]..][..rows - width];
-    (start, width, rows, below)
-}
-
 /// Position of row `r` within the rows of the supernode starting at column
 /// `start` with `width` columns and rows `below` under its diagonal block.
 fn position(r: usize, start: usize, width: usize, below: &[usize]) -> Option<usize> {
@@ -69,78 +60,141 @@ fn position(r: usize, start: usize, width: usize, below: &[usize]) -> Option<usi
     }
 }
 
+/// Supernode `s`'s row at position `p` (its columns' rows first).
+fn row_at(symbolic: &SupernodalSymbolic, s: usize, p: usize) -> Option<usize> {
+    let (start, width, _, below) = symbolic.supernode(s);
+    match p.checked_sub(width) {
+        None => Some(start + p),
+        Some(q) => below.get(q).copied(),
+    }
+}
+
+/// For each entry of H's upper triangle `upper`, its position among L's
+/// values. H's entry (r, c), r ≤ c, is L's (c, r): column r, row c. Row
+/// c's position is the same in every column of r's supernode, and one
+/// past row c − 1's when that comes just before it there (the rows of a
+/// vertex block), so it is searched for once per block of H.
+fn h_positions(
+    symbolic: &SupernodalSymbolic,
+    upper: SymbolicSparseColMatRef<'_, usize>,
+    supernode_of: &[usize],
+) -> Option<Vec<usize>> {
+    let val_ptr = symbolic.val_ptr();
+    // Per supernode, the last column looked up and its row's position.
+    let mut recent = vec![(usize::MAX, 0); symbolic.n_supernodes()];
+    let mut h_to_l = Vec::with_capacity(upper.row_idx().len());
+    for c in 0..upper.ncols() {
+        // Row c of L's column r is at base + r·rows for every r in supernode s.
+        let (mut last, mut base, mut rows) = (usize::MAX, 0usize, 0usize);
+        for &r in upper.row_idx_of_col_raw(c) {
+            let s = *supernode_of.get(r)?;
+            if s != last {
+                last = s;
+                let (start, width, height, below) = symbolic.supernode(s);
+                let (col, p) = recent[s];
+                let p = if c.checked_sub(1) == Some(col) && row_at(symbolic, s, p + 1) == Some(c) {
+                    p + 1
+                } else {
+                    position(c, start, width, below)?
+                };
+                recent[s] = (c, p);
+                rows = height;
+                base = (val_ptr[s] + p).wrapping_sub(start * rows);
+            }
+            h_to_l.push(base.wrapping_add(r * rows));
+        }
+    }
+    Some(h_to_l)
+}
+
+/// The positions `rel` of the groups' rows (each group's source supernode's
+/// rows from the group's first on) in the group's target supernode: target
+/// by target, through a map from row to position there.
+fn update_positions(
+    symbolic: &SupernodalSymbolic,
+    groups: &[(u32, u32, usize)],
+    targets: &[(u32, u32)],
+    len: usize,
+) -> Option<Vec<u32>> {
+    let n_supernodes = symbolic.n_supernodes();
+    let by_target: Vec<(u32, u32)> = (0..groups.len() as u32)
+        .map(|g| (targets[g as usize].0, g))
+        .collect();
+    let (start_of, order) = group_by_key(n_supernodes, &by_target);
+    let mut position = vec![0u32; symbolic.dim()];
+    let mut rel = vec![0u32; len];
+    for s in 0..n_supernodes {
+        let (start, width, _, below) = symbolic.supernode(s);
+        for (p, r) in (start..start + width)
+            .chain(below.iter().copied())
+            .enumerate()
+        {
+            position[r] = p as u32;
+        }
+        for &g in &order[start_of[s]..start_of[s + 1]] {
+            let (first, _, rel_start) = groups[g as usize];
+            let (_, _, _, pattern) = symbolic.supernode(targets[g as usize].1 as usize);
+            let pattern = &pattern[first as usize..];
+            for (out, &r) in rel[rel_start..][..pattern.len()].iter_mut().zip(pattern) {
+                *out = position[r];
+                // The structure puts every row there; a stale entry would not.
+                if row_at(symbolic, s, *out as usize) != Some(r) {
+                    return None;
+                }
+            }
+        }
+    }
+    Some(rel)
+}
+
 impl SupernodalNumeric {
-    /// The plan for H's upper triangle `upper` on `symbolic` (faer's
-    /// analysis of that pattern without a permutation). `None` if the
-    /// pattern does not fit the structure (which faer's analysis rules out)
-    /// or the plan would outgrow the factor.
+    /// The plan for H's upper triangle `upper` on `symbolic` (the
+    /// structure of its factor). `None` if the pattern does not fit the
+    /// structure (which the analysis rules out) or the plan would outgrow
+    /// the factor.
     pub(crate) fn new(
-        symbolic: &SymbolicSupernodalCholesky<usize>,
+        symbolic: &SupernodalSymbolic,
         upper: SymbolicSparseColMatRef<'_, usize>,
         par: Par,
     ) -> Option<Self> {
         let n_supernodes = symbolic.n_supernodes();
-        let val_ptr = symbolic.col_ptr_for_val();
+        let val_ptr = symbolic.val_ptr();
         let mut supernode_of = vec![0; upper.ncols()];
         for s in 0..n_supernodes {
-            supernode_of[symbolic.supernode_begin()[s]..symbolic.supernode_end()[s]].fill(s);
+            let (start, width, _, _) = symbolic.supernode(s);
+            supernode_of[start..start + width].fill(s);
         }
-        // H's entry (r, c), r ≤ c, is L's (c, r): column r, row c. Row c's
-        // position is the same in every column of r's supernode, so it is
-        // looked up once per supernode met in H's column c.
-        let mut h_to_l = Vec::with_capacity(upper.row_idx().len());
-        for c in 0..upper.ncols() {
-            let mut last: Option<(usize, usize, usize, usize)> = None;
-            for &r in upper.row_idx_of_col_raw(c) {
-                let s = *supernode_of.get(r)?;
-                let (start, rows, p) = match last {
-                    Some((ls, start, rows, p)) if ls == s => (start, rows, p),
-                    _ => {
-                        let (start, width, rows, below) = supernode(symbolic, s);
-                        let p = position(c, start, width, below)?;
-                        last = Some((s, start, rows, p));
-                        (start, rows, p)
-                    }
-                };
-                h_to_l.push(val_ptr[s] + (r - start) * rows + p);
-            }
-        }
-        let (mut groups, mut group_start, mut rel) = (Vec::new(), vec![0], Vec::new());
+        let h_to_l = h_positions(symbolic, upper, &supernode_of)?;
+        // Each supernode d's rows below, in runs that fall in one later
+        // supernode s (a group); column j of d's update goes to s's column
+        // of the row j, its rows from j on to their positions there (rel).
+        let (mut groups, mut group_start, mut targets) = (Vec::new(), vec![0], Vec::new());
         let mut column_start = Vec::new();
-        let (mut widest, mut tallest) = (0, 0);
+        let (mut widest, mut tallest, mut rel_len) = (0, 0, 0);
         for d in 0..n_supernodes {
-            let (_, width, _, pattern) = supernode(symbolic, d);
+            let (_, width, _, pattern) = symbolic.supernode(d);
             (widest, tallest) = (widest.max(width), tallest.max(pattern.len()));
             let mut j = 0;
             while j < pattern.len() {
                 let s = supernode_of[pattern[j]];
-                let (start, width, rows, below) = supernode(symbolic, s);
+                let (start, width, rows, _) = symbolic.supernode(s);
                 let end = j + pattern[j..].partition_point(|&r| r < start + width);
-                groups.push((j as u32, end as u32, rel.len()));
-                // Both row lists are sorted: one merge finds every position.
-                let mut p = 0;
-                for &r in &pattern[j..] {
-                    let at = if r < start + width {
-                        r - start
-                    } else {
-                        p += below[p..].iter().position(|&b| b >= r)?;
-                        if below[p] != r {
-                            return None;
-                        }
-                        width + p
-                    };
-                    rel.push(at as u32);
-                }
-                for &c in &pattern[j..end] {
-                    column_start.push(val_ptr[s] + (c - start) * rows);
-                }
+                groups.push((j as u32, end as u32, rel_len));
+                targets.push((s as u32, d as u32));
+                rel_len += pattern.len() - j;
+                column_start.extend(
+                    pattern[j..end]
+                        .iter()
+                        .map(|&c| val_ptr[s] + (c - start) * rows),
+                );
                 j = end;
             }
             group_start.push(groups.len());
-            if rel.len() > symbolic.len_val() {
-                return None;
-            }
         }
+        if rel_len > symbolic.len_val() {
+            return None;
+        }
+        let rel = update_positions(symbolic, &groups, &targets, rel_len)?;
         let req = cholesky_in_place_scratch::<f64>(widest, par, Default::default());
         Some(Self {
             h_to_l,
@@ -164,7 +218,7 @@ impl SupernodalNumeric {
     /// then finishes the solve.
     pub(crate) fn factorize(
         &mut self,
-        symbolic: &SymbolicSupernodalCholesky<usize>,
+        symbolic: &SupernodalSymbolic,
         h: &[f64],
         values: &mut [f64],
         mut forward: Option<(&mut [f64], &mut [f64])>,
@@ -173,10 +227,10 @@ impl SupernodalNumeric {
         for (&p, &x) in self.h_to_l.iter().zip(h) {
             values[p] = x;
         }
-        let val_ptr = symbolic.col_ptr_for_val();
+        let val_ptr = symbolic.val_ptr();
         let mut first_row = 0;
         for d in 0..symbolic.n_supernodes() {
-            let (start, width, rows, rows_below) = supernode(symbolic, d);
+            let (start, width, rows, rows_below) = symbolic.supernode(d);
             let below = rows - width;
             let (done, later) = values.split_at_mut(val_ptr[d + 1]);
             let l = MatMut::from_column_major_slice_mut(&mut done[val_ptr[d]..], rows, width);
@@ -251,6 +305,77 @@ impl SupernodalNumeric {
     }
 }
 
+/// A supernodal factor: Cairn's structure (from the block analysis), its
+/// factorisation plan, the values and the solves' work space.
+pub(crate) struct SupernodalCholesky {
+    symbolic: SupernodalSymbolic,
+    numeric: SupernodalNumeric,
+    values: Vec<f64>,
+    /// Rows below one supernode's diagonal block, for the solves (the
+    /// forward substitution in the factorisation too).
+    work: Vec<f64>,
+}
+
+impl std::fmt::Debug for SupernodalCholesky {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("SupernodalCholesky")
+            .field("supernodes", &self.symbolic.n_supernodes())
+            .field("values", &self.values.len())
+            .finish()
+    }
+}
+
+impl SupernodalCholesky {
+    /// The factor of H (upper triangle `upper`) with the structure
+    /// `symbolic`; `None` if its plan would outgrow the factor.
+    pub(crate) fn new(
+        symbolic: SupernodalSymbolic,
+        upper: SymbolicSparseColMatRef<'_, usize>,
+        par: Par,
+    ) -> Option<Self> {
+        let numeric = SupernodalNumeric::new(&symbolic, upper, par)?;
+        Some(Self {
+            numeric,
+            values: vec![0.0; symbolic.len_val()],
+            work: vec![0.0; symbolic.most_below()],
+            symbolic,
+        })
+    }
+
+    /// Stored values of L.
+    pub(crate) fn len_val(&self) -> usize {
+        self.values.len()
+    }
+
+    /// Factorises H, given by the values of its upper triangle; with
+    /// `forward`, also runs the forward substitution on it in place.
+    pub(crate) fn factorize(
+        &mut self,
+        h: &[f64],
+        forward: Option<&mut [f64]>,
+    ) -> Result<(), NotPositiveDefinite> {
+        let forward = forward.map(|x| (x, &mut self.work[..]));
+        self.numeric
+            .factorize(&self.symbolic, h, &mut self.values, forward)
+    }
+
+    /// Solves L Lᵀ x = b in place.
+    pub(crate) fn solve_in_place(&mut self, x: &mut [f64]) {
+        supernodal_solve(&self.symbolic, &self.values, x, &mut self.work);
+    }
+
+    /// Solves Lᵀ x = y in place, after a factorisation that ran the forward
+    /// substitution.
+    pub(crate) fn backward_solve(&mut self, x: &mut [f64]) {
+        backward_solve(&self.symbolic, &self.values, x, &mut self.work);
+    }
+
+    /// The structure and values as the selected inverse takes them.
+    pub(crate) fn supernodes(&self) -> crate::selected_inverse::Supernodes {
+        self.symbolic.supernodes(self.values.clone())
+    }
+}
+
 /// `a · b` summed in eight independent lanes, which the compiler keeps in
 /// SIMD registers (a single running sum waits on each addition in turn).
 pub(crate) fn dot_in_lanes(a: &[f64], b: &[f64]) -> f64 {
@@ -273,12 +398,12 @@ pub(crate) fn dot_in_lanes(a: &[f64], b: &[f64]) -> f64 {
 /// Supernode `s`'s first column, width, values (column-major, the
 /// diagonal block's rows first) and the rows below its diagonal block.
 fn supernode_values<'a>(
-    symbolic: &'a SymbolicSupernodalCholesky<usize>,
+    symbolic: &'a SupernodalSymbolic,
     values: &'a [f64],
     s: usize,
 ) -> (usize, usize, &'a [f64], &'a [usize]) {
-    let (start, width, _, below) = supernode(symbolic, s);
-    let val_ptr = symbolic.col_ptr_for_val();
+    let (start, width, _, below) = symbolic.supernode(s);
+    let val_ptr = symbolic.val_ptr();
     (start, width, &values[val_ptr[s]..val_ptr[s + 1]], below)
 }
 
@@ -318,8 +443,8 @@ fn forward_step(
 /// layout). faer's own solve multiplies each supernode through its general
 /// dense kernels, which on the small supernodes of pose graphs (3 to a few
 /// dozen columns) costs more than these loops.
-pub(crate) fn supernodal_solve(
-    symbolic: &SymbolicSupernodalCholesky<usize>,
+fn supernodal_solve(
+    symbolic: &SupernodalSymbolic,
     values: &[f64],
     x: &mut [f64],
     work: &mut [f64],
@@ -332,12 +457,7 @@ pub(crate) fn supernodal_solve(
 }
 
 /// Solves Lᵀ x = y in place (the second half of [`supernodal_solve`]).
-pub(crate) fn backward_solve(
-    symbolic: &SymbolicSupernodalCholesky<usize>,
-    values: &[f64],
-    x: &mut [f64],
-    work: &mut [f64],
-) {
+fn backward_solve(symbolic: &SupernodalSymbolic, values: &[f64], x: &mut [f64], work: &mut [f64]) {
     for s in (0..symbolic.n_supernodes()).rev() {
         let (start, size, values, below) = supernode_values(symbolic, values, s);
         let rows = size + below.len();

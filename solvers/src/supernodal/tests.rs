@@ -2,16 +2,16 @@
 //! simplicial ones.
 
 use super::*;
+use crate::simplicial::SimplicialSymbolic;
 use crate::test_matrices::{random_h, upper_times};
 use faer::Side;
 use faer::sparse::SparseColMatRef;
 use faer::sparse::SymbolicSparseColMat;
-use faer::sparse::linalg::SupernodalThreshold;
-use faer::sparse::linalg::cholesky::supernodal::SymbolicSupernodalCholesky;
 use faer::sparse::linalg::cholesky::{
     CholeskySymbolicParams, SymbolicCholesky, SymbolicCholeskyRaw, SymmetricOrdering,
     factorize_symbolic_cholesky,
 };
+use faer::sparse::linalg::{SupernodalThreshold, SymbolicSupernodalParams};
 use rand::rngs::StdRng;
 use rand::{Rng, SeedableRng};
 
@@ -54,13 +54,66 @@ fn faer_factor(
     }
 }
 
+/// Cairn's supernodal structure of the factor of the block matrix with
+/// upper block triangle `blocks` and block sizes `dims`.
+fn ours(blocks: &SymbolicSparseColMat<usize>, dims: &[usize]) -> SupernodalSymbolic {
+    let analysis = SimplicialSymbolic::analyze(blocks.as_ref(), dims).unwrap();
+    SupernodalSymbolic::from_blocks(&analysis).unwrap()
+}
+
+/// The structure found on the blocks is faer's, found on the scalar
+/// pattern: the same supernodes (fundamental ones, relaxed by the same
+/// rule), rows and value layout, on random block matrices with blocks of
+/// 1 to 8 columns (so merges of every width limit are met).
+#[test]
+fn supernodes_from_the_blocks_are_faers() {
+    let mut rng = StdRng::seed_from_u64(41);
+    let (mut merged, mut supernodes) = (0, 0);
+    for _ in 0..300 {
+        let (blocks, dims, pattern, _) = random_h(&mut rng);
+        let faer = analyze(&pattern);
+        let SymbolicCholeskyRaw::Supernodal(faer) = faer.raw() else {
+            panic!("not supernodal")
+        };
+        let ours = ours(&blocks, &dims);
+        assert_eq!(ours.n_supernodes(), faer.n_supernodes());
+        assert_eq!(ours.val_ptr(), faer.col_ptr_for_val());
+        for s in 0..faer.n_supernodes() {
+            let (start, width, rows, below) = ours.supernode(s);
+            assert_eq!(start, faer.supernode_begin()[s]);
+            assert_eq!(start + width, faer.supernode_end()[s]);
+            let faer_rows = &faer.row_idx()[faer.col_ptr_for_row_idx()[s]..][..rows - width];
+            assert_eq!(below, faer_rows);
+        }
+        // How many fundamental supernodes the relaxation merged.
+        let params = CholeskySymbolicParams {
+            supernodal_flop_ratio_threshold: SupernodalThreshold::FORCE_SUPERNODAL,
+            supernodal_params: SymbolicSupernodalParams { relax: None },
+            ..Default::default()
+        };
+        let fundamental = factorize_symbolic_cholesky(
+            pattern.as_ref(),
+            Side::Upper,
+            SymmetricOrdering::Identity,
+            params,
+        )
+        .unwrap();
+        let SymbolicCholeskyRaw::Supernodal(fundamental) = fundamental.raw() else {
+            panic!("not supernodal")
+        };
+        merged += fundamental.n_supernodes() - ours.n_supernodes();
+        supernodes += fundamental.n_supernodes();
+    }
+    assert!(merged > supernodes / 4, "{merged} of {supernodes}");
+}
+
 /// L's entries on and below the diagonal, supernode by supernode (faer's
 /// dense kernels leave scratch above the diagonal of the diagonal blocks).
-fn lower_entries(symbolic: &SymbolicSupernodalCholesky<usize>, values: &[f64]) -> Vec<f64> {
+fn lower_entries(symbolic: &SupernodalSymbolic, values: &[f64]) -> Vec<f64> {
     let mut out = Vec::new();
     for s in 0..symbolic.n_supernodes() {
-        let (_, width, rows, _) = supernode(symbolic, s);
-        let panel = &values[symbolic.col_ptr_for_val()[s]..][..rows * width];
+        let (_, width, rows, _) = symbolic.supernode(s);
+        let panel = &values[symbolic.val_ptr()[s]..][..rows * width];
         for (j, column) in panel.chunks_exact(rows).enumerate() {
             out.extend_from_slice(&column[j..]);
         }
@@ -77,11 +130,9 @@ fn supernodal_factor_matches_faer() {
     let mut rng = StdRng::seed_from_u64(23);
     let mut failures = 0;
     for _ in 0..200 {
-        let (_, _, pattern, mut values) = random_h(&mut rng);
+        let (blocks, dims, pattern, mut values) = random_h(&mut rng);
         let symbolic = analyze(&pattern);
-        let SymbolicCholeskyRaw::Supernodal(supernodal) = symbolic.raw() else {
-            panic!("not supernodal")
-        };
+        let supernodal = &ours(&blocks, &dims);
         let mut numeric = SupernodalNumeric::new(supernodal, pattern.as_ref(), Par::Seq).unwrap();
         let mut ours = vec![f64::NAN; symbolic.len_val()];
         let want = faer_factor(&symbolic, &pattern, &values).unwrap();
@@ -119,7 +170,7 @@ fn supernodal_factor_matches_faer() {
     assert_eq!(failures, 200);
 }
 
-/// The supernodal factor and solve (Cairn's, on faer's structure), begun
+/// The supernodal factor and solve, begun
 /// in the factorisation or not, give the simplicial factor's solution, and
 /// H x = b, on random block matrices of up to a few hundred columns.
 #[test]
