@@ -22,10 +22,10 @@ pub struct SimplicialSymbolic {
     /// ascending (`row_blocks[row_start[K]..row_start[K + 1]]`).
     row_start: Vec<usize>,
     row_blocks: Vec<u32>,
-    /// For each block column J of L, the block rows K > J with L[K, J] ≠ 0,
-    /// ascending (`col_blocks[col_start[J]..col_start[J + 1]]`).
-    col_start: Vec<usize>,
-    col_blocks: Vec<u32>,
+    /// Each block's parent in the elimination tree (`u32::MAX` for roots).
+    parent: Vec<u32>,
+    /// Scalar rows below each block's diagonal block in L.
+    degree: Vec<usize>,
     /// First scalar column of each block, and the dimension at the end.
     block_column: Vec<usize>,
     /// Where each scalar column of L starts in the values: its diagonal,
@@ -52,6 +52,7 @@ impl SimplicialSymbolic {
         block_column.push(dim);
         const NONE: usize = usize::MAX;
         let mut parent = vec![NONE; nb];
+        let mut degree = vec![0usize; nb];
         let mut visited = vec![NONE; nb];
         let mut row_start = Vec::with_capacity(nb + 1);
         let mut row_blocks: Vec<u32> = Vec::new();
@@ -64,6 +65,7 @@ impl SimplicialSymbolic {
                 while i < k && visited[i] != k {
                     visited[i] = k;
                     row_blocks.push(i as u32);
+                    degree[i] += dims[k];
                     if parent[i] == NONE {
                         parent[i] = k;
                     }
@@ -73,25 +75,13 @@ impl SimplicialSymbolic {
             row_blocks[begin..].sort_unstable();
             row_start.push(row_blocks.len());
         }
-        // The block columns: the rows grouped by column, so ascending too.
-        let pairs: Vec<(u32, u32)> = (0..nb)
-            .flat_map(|k| {
-                let rows = &row_blocks[row_start[k]..row_start[k + 1]];
-                rows.iter().map(move |&j| (j, k as u32))
-            })
-            .collect();
-        let (col_start, col_blocks) = group_by_key(nb, &pairs);
         let mut col_ptr = Vec::with_capacity(dim + 1);
         col_ptr.push(0usize);
         let mut len = 0usize;
         for j in 0..nb {
-            let below: usize = col_blocks[col_start[j]..col_start[j + 1]]
-                .iter()
-                .map(|&k| dims[k as usize])
-                .sum();
             for c in 0..dims[j] {
                 len = len
-                    .checked_add(dims[j] - c + below)
+                    .checked_add(dims[j] - c + degree[j])
                     .ok_or(SolveError::TooLarge {
                         entries: usize::MAX,
                     })?;
@@ -101,8 +91,8 @@ impl SimplicialSymbolic {
         Ok(Self {
             row_start,
             row_blocks,
-            col_start,
-            col_blocks,
+            parent: parent.iter().map(|&p| p as u32).collect(),
+            degree,
             block_column,
             col_ptr,
         })
@@ -137,9 +127,25 @@ impl SimplicialSymbolic {
         self.block_column[b as usize]..self.block_column[b as usize + 1]
     }
 
-    /// The blocks below the diagonal block in block column `b`.
-    pub(crate) fn below(&self, b: usize) -> &[u32] {
-        &self.col_blocks[self.col_start[b]..self.col_start[b + 1]]
+    /// Block `b`'s parent in the elimination tree.
+    pub(crate) fn parent(&self, b: usize) -> Option<usize> {
+        Some(self.parent[b] as usize).filter(|_| self.parent[b] != u32::MAX)
+    }
+
+    /// Scalar rows below block `b`'s diagonal block in L.
+    pub(crate) fn degree(&self, b: usize) -> usize {
+        self.degree[b]
+    }
+
+    /// For each block column J of L, the block rows K > J with L[K, J] ≠ 0,
+    /// ascending: `(start, blocks)` with J's at `start[J]..start[J + 1]`.
+    fn columns(&self) -> (Vec<usize>, Vec<u32>) {
+        let nb = self.block_column.len() - 1;
+        let pairs: Vec<(u32, u32)> = (0..nb)
+            .flat_map(|k| self.row(k).iter().map(move |&j| (j, k as u32)))
+            .collect();
+        // Grouped by column in row order, so ascending too.
+        group_by_key(nb, &pairs)
     }
 
     /// The block columns J < `k` with L[k, J] ≠ 0, ascending.
@@ -177,11 +183,12 @@ impl SimplicialCholesky {
         let n = symbolic.dim();
         u32::try_from(n).ok()?;
         let mut row_idx: Vec<u32> = Vec::with_capacity(symbolic.len_val());
+        let (col_start, col_blocks) = symbolic.columns();
         for jb in 0..symbolic.block_column.len() - 1 {
             let cols = symbolic.rows(jb as u32);
             for j in cols.clone() {
                 row_idx.extend(j as u32..cols.end as u32);
-                for &ib in symbolic.below(jb) {
+                for &ib in &col_blocks[col_start[jb]..col_start[jb + 1]] {
                     let rows = symbolic.rows(ib);
                     row_idx.extend(rows.start as u32..rows.end as u32);
                 }

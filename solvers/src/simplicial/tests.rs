@@ -41,11 +41,17 @@ fn block_simplicial_factor_matches_faer() {
         };
         // Same column lengths, and each column's rows (diagonal, rest of
         // its block, the blocks below) are faer's.
+        // The tree and the rows below each block are those columns' too.
         assert_eq!(ours.col_ptr, l.col_ptr());
+        let (col_start, col_blocks) = ours.columns();
         for jb in 0..dims.len() {
+            let below = &col_blocks[col_start[jb]..col_start[jb + 1]];
+            assert_eq!(ours.parent(jb), below.first().map(|&p| p as usize));
+            let degree: usize = below.iter().map(|&ib| dims[ib as usize]).sum();
+            assert_eq!(ours.degree(jb), degree);
             for j in ours.rows(jb as u32) {
                 let mut rows: Vec<usize> = (j..ours.rows(jb as u32).end).collect();
-                for &ib in ours.below(jb) {
+                for &ib in below {
                     rows.extend(ours.rows(ib));
                 }
                 assert_eq!(rows, l.row_idx()[l.col_ptr()[j]..l.col_ptr()[j + 1]]);

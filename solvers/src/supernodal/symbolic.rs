@@ -67,11 +67,8 @@ impl SupernodalSymbolic {
         let first = blocks.block_column();
         let nb = first.len() - 1;
         let width = |b: usize| first[b + 1] - first[b];
-        // Rows below each block's diagonal block, and its parent.
-        let degree: Vec<usize> = (0..nb)
-            .map(|b| blocks.below(b).iter().map(|&k| width(k as usize)).sum())
-            .collect();
-        let parent = |b: usize| blocks.below(b).first().map(|&p| p as usize);
+        let degree = |b: usize| blocks.degree(b);
+        let parent = |b: usize| blocks.parent(b);
         let mut children = vec![0u32; nb];
         for b in 0..nb {
             if let Some(p) = parent(b) {
@@ -85,7 +82,7 @@ impl SupernodalSymbolic {
         for b in 1..nb {
             let joins = parent(b - 1) == Some(b)
                 && children[b] == 1
-                && degree[b - 1] == width(b) + degree[b];
+                && degree(b - 1) == width(b) + degree(b);
             if !joins {
                 fundamental.push(b);
             }
@@ -96,11 +93,11 @@ impl SupernodalSymbolic {
         let mut runs: Vec<Run> = Vec::new();
         for f in fundamental.windows(2).filter(|w| w[0] < w[1]) {
             let (start, end) = (f[0], f[1]);
-            let own = (first[end] - first[start], degree[end - 1]);
+            let own = (first[end] - first[start], degree(end - 1));
             let merged = runs.last().and_then(|run| {
                 let child_last = start - 1;
                 parent(child_last).filter(|p| (start..end).contains(p))?;
-                relaxed_merge((run.width, degree[child_last], run.zeros), own)
+                relaxed_merge((run.width, degree(child_last), run.zeros), own)
             });
             match (merged, runs.last_mut()) {
                 (Some(zeros), Some(run)) => {
@@ -123,7 +120,7 @@ impl SupernodalSymbolic {
         for (s, run) in runs.iter().enumerate() {
             let end_block = runs.get(s + 1).map_or(nb, |r| r.first_block);
             supernode_of[run.first_block..end_block].fill(s);
-            let below = degree[end_block - 1];
+            let below = degree(end_block - 1);
             let values = (run.width + below)
                 .checked_mul(run.width)
                 .and_then(|v| v.checked_add(val_ptr[s]))
