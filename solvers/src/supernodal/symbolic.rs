@@ -79,9 +79,9 @@ impl SupernodalSymbolic {
         // that block's parent, has no other child, and the rows below
         // continue that block's (the same pattern).
         let mut fundamental = vec![0];
-        for b in 1..nb {
+        for (b, &children) in children.iter().enumerate().skip(1) {
             let joins = parent(b - 1) == Some(b)
-                && children[b] == 1
+                && children == 1
                 && degree(b - 1) == width(b) + degree(b);
             if !joins {
                 fundamental.push(b);
