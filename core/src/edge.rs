@@ -30,6 +30,23 @@ pub trait UnaryEdge<const E: usize, const D: usize>: Clone + Send + Sync + 'stat
 pub type Linearized<const E: usize, const D1: usize, const D2: usize> =
     (SVector<f64, E>, SMatrix<f64, E, D1>, SMatrix<f64, E, D2>);
 
+/// A binary edge's share of the normal equations, for a weighted
+/// information matrix W: the blocks (1, 1), (1, 2) and (2, 2) of JᵀWJ and
+/// each variable's JᵀWe.
+#[derive(Clone, Debug, PartialEq)]
+pub struct NormalBlocks<const D1: usize, const D2: usize> {
+    /// J₁ᵀWJ₁.
+    pub h11: SMatrix<f64, D1, D1>,
+    /// J₁ᵀWJ₂.
+    pub h12: SMatrix<f64, D1, D2>,
+    /// J₂ᵀWJ₂.
+    pub h22: SMatrix<f64, D2, D2>,
+    /// J₁ᵀWe.
+    pub g1: SVector<f64, D1>,
+    /// J₂ᵀWe.
+    pub g2: SVector<f64, D2>,
+}
+
 /// An edge between two variables.
 pub trait BinaryEdge<const E: usize, const D1: usize, const D2: usize>:
     Clone + Send + Sync + 'static
@@ -59,6 +76,26 @@ pub trait BinaryEdge<const E: usize, const D1: usize, const D2: usize>:
     fn linearize(&self, x1: &Self::V1, x2: &Self::V2) -> Linearized<E, D1, D2> {
         let (j1, j2) = self.jacobians(x1, x2);
         (self.error(x1, x2), j1, j2)
+    }
+
+    /// The edge's share of the normal equations from its linearisation `lin`
+    /// and the symmetric weighted information `w`. Override when the
+    /// Jacobians have structure that saves most of the products (EDGE_SE2);
+    /// the result must equal this one to rounding.
+    fn normal_blocks(
+        &self,
+        lin: &Linearized<E, D1, D2>,
+        w: &SMatrix<f64, E, E>,
+    ) -> NormalBlocks<D1, D2> {
+        let (e, j1, j2) = lin;
+        let (wj1, wj2) = (w * j1, w * j2);
+        NormalBlocks {
+            h11: j1.transpose() * wj1,
+            h12: j1.transpose() * wj2,
+            h22: j2.transpose() * wj2,
+            g1: wj1.transpose() * e,
+            g2: wj2.transpose() * e,
+        }
     }
 
     /// The second variable predicted from the first and the measurement, used by

@@ -1,7 +1,7 @@
 //! The g2o edge types: EDGE_SE2, EDGE_SE2_XY, EDGE_PRIOR_SE2 and EDGE_SE3:QUAT,
 //! with g2o's error definitions and analytic Jacobians.
 
-use crate::edge::{BinaryEdge, Linearized, UnaryEdge};
+use crate::edge::{BinaryEdge, Linearized, NormalBlocks, UnaryEdge};
 use crate::se2::{SE2, normalize_angle};
 use crate::se3::{SE3, canonical, skew};
 use nalgebra::{Matrix2, Matrix3, Matrix6, SMatrix, Vector2, Vector3, Vector6};
@@ -86,6 +86,62 @@ impl BinaryEdge<3, 3, 3> for EdgeSE2 {
         let sc = xi.theta.sin_cos();
         let (ji, jj) = self.jacobians_at(sc, xi, xj);
         (self.error_at(sc, xi, xj), ji, jj)
+    }
+
+    /// With A = Rzᵀ Rᵢᵀ, J₂ = [A 0; 0 1] and J₁ = −J₂ + u e₃ᵀ, where u is
+    /// J₁'s third column above its last row (v) and 0: so J₂ᵀWJ₂ takes one
+    /// 2×2 congruence, and J₁'s blocks differ from it in the third row and
+    /// column only (q = J₂ᵀWu, s = uᵀWu):
+    /// J₁ᵀWJ₂ = −J₂ᵀWJ₂ + e₃qᵀ, J₁ᵀWJ₁ = J₂ᵀWJ₂ − qe₃ᵀ − e₃qᵀ + s e₃e₃ᵀ.
+    fn normal_blocks(
+        &self,
+        (e, j1, j2): &Linearized<3, 3, 3>,
+        w: &Matrix3<f64>,
+    ) -> NormalBlocks<3, 3> {
+        let a = j2.fixed_view::<2, 2>(0, 0).into_owned();
+        let v = j1.fixed_view::<2, 1>(0, 2).into_owned();
+        let wt = w.fixed_view::<2, 2>(0, 0).into_owned();
+        let wc = w.fixed_view::<2, 1>(0, 2).into_owned();
+        let wta = wt * a;
+        let at_wc = a.transpose() * wc;
+        let mut h22 = Matrix3::zeros();
+        h22.fixed_view_mut::<2, 2>(0, 0)
+            .copy_from(&(a.transpose() * wta));
+        h22.fixed_view_mut::<2, 1>(0, 2).copy_from(&at_wc);
+        h22.fixed_view_mut::<1, 2>(2, 0)
+            .copy_from(&at_wc.transpose());
+        h22[(2, 2)] = w[(2, 2)];
+        // q = J₂ᵀWu = [Aᵀ Wt v; wcᵀ v], s = uᵀWu = vᵀ Wt v.
+        let wt_v = wt * v;
+        let q = Vector3::new(
+            a[(0, 0)] * wt_v.x + a[(1, 0)] * wt_v.y,
+            a[(0, 1)] * wt_v.x + a[(1, 1)] * wt_v.y,
+            wc.dot(&v),
+        );
+        let s = v.dot(&wt_v);
+        let mut h12 = -h22;
+        let mut h11 = h22;
+        for k in 0..3 {
+            h12[(2, k)] += q[k];
+            h11[(2, k)] -= q[k];
+            h11[(k, 2)] -= q[k];
+        }
+        h11[(2, 2)] += s;
+        let we = w * e;
+        let g2 = Vector3::new(
+            a[(0, 0)] * we.x + a[(1, 0)] * we.y,
+            a[(0, 1)] * we.x + a[(1, 1)] * we.y,
+            we.z,
+        );
+        let mut g1 = -g2;
+        g1.z += v.x * we.x + v.y * we.y;
+        NormalBlocks {
+            h11,
+            h12,
+            h22,
+            g1,
+            g2,
+        }
     }
 
     fn predict_second(&self, xi: &SE2) -> Option<SE2> {

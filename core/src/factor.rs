@@ -342,15 +342,14 @@ impl<T: BinaryEdge<E, D1, D2>, const E: usize, const D1: usize, const D2: usize>
     fn emit(en: &Entry<T, E, 2>, values: &Values, sink: &mut impl Sink) {
         let x1 = values.get::<T::V1, D1>(en.vertices[0]);
         let x2 = values.get::<T::V2, D2>(en.vertices[1]);
-        let (e, j1, j2) = en.edge.linearize(&x1, &x2);
-        let (chi2, weight) = en.robust(&e);
-        let oj1 = en.information * j1 * weight;
-        let oj2 = en.information * j2 * weight;
-        sink.block(0, &(j1.transpose() * oj1));
-        sink.block(1, &(j1.transpose() * oj2));
-        sink.block(2, &(j2.transpose() * oj2));
-        sink.gradient(0, &(oj1.transpose() * e));
-        sink.gradient(1, &(oj2.transpose() * e));
+        let lin = en.edge.linearize(&x1, &x2);
+        let (chi2, weight) = en.robust(&lin.0);
+        let blocks = en.edge.normal_blocks(&lin, &(en.information * weight));
+        sink.block(0, &blocks.h11);
+        sink.block(1, &blocks.h12);
+        sink.block(2, &blocks.h22);
+        sink.gradient(0, &blocks.g1);
+        sink.gradient(1, &blocks.g2);
         sink.chi2(chi2);
     }
 }

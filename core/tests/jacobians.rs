@@ -1,5 +1,6 @@
 //! Analytic Jacobians of every built-in edge against central differences at
-//! 1,000 random states each.
+//! 1,000 random states each, and each edge's share of the normal equations
+//! against JᵀWJ and JᵀWe.
 
 use cairn_core::edge::{numeric_binary, numeric_unary};
 use cairn_core::se3::quaternion_from_vector;
@@ -51,10 +52,18 @@ fn assert_close<const R: usize, const C: usize>(
     );
 }
 
+/// A random symmetric positive-definite E × E information matrix with
+/// entries of either sign off the diagonal.
+fn information<const E: usize>(rng: &mut StdRng) -> SMatrix<f64, E, E> {
+    let m = SMatrix::<f64, E, E>::from_fn(|_, _| rng.random_range(-2.0..2.0));
+    m.transpose() * m + SMatrix::identity() * 0.1
+}
+
 fn check_binary<T, const E: usize, const D1: usize, const D2: usize>(
     edge: &T,
     x1: &T::V1,
     x2: &T::V2,
+    rng: &mut StdRng,
 ) where
     T: BinaryEdge<E, D1, D2>,
 {
@@ -66,6 +75,23 @@ fn check_binary<T, const E: usize, const D1: usize, const D2: usize>(
     let (e, l1, l2) = edge.linearize(x1, x2);
     assert_eq!(e, edge.error(x1, x2), "{}: linearize's error", T::NAME);
     assert_eq!((l1, l2), (a1, a2), "{}: linearize's Jacobians", T::NAME);
+    // Its share of the normal equations is JᵀWJ and JᵀWe, however formed.
+    let w = information::<E>(rng);
+    let b = edge.normal_blocks(&(e, l1, l2), &w);
+    let what = format!("{}: normal blocks", T::NAME);
+    let close = |ours: &[f64], plain: &[f64]| {
+        let scale = plain.iter().fold(1.0f64, |m, x| m.max(x.abs()));
+        let diff = ours
+            .iter()
+            .zip(plain)
+            .fold(0.0f64, |m, (a, b)| m.max((a - b).abs()));
+        assert!(diff <= 1e-12 * scale, "{what}: {diff:e} off");
+    };
+    close(b.h11.as_slice(), (l1.transpose() * w * l1).as_slice());
+    close(b.h12.as_slice(), (l1.transpose() * w * l2).as_slice());
+    close(b.h22.as_slice(), (l2.transpose() * w * l2).as_slice());
+    close(b.g1.as_slice(), (l1.transpose() * w * e).as_slice());
+    close(b.g2.as_slice(), (l2.transpose() * w * e).as_slice());
 }
 
 #[test]
@@ -73,7 +99,7 @@ fn edge_se2_jacobians() {
     let mut rng = StdRng::seed_from_u64(1);
     for _ in 0..STATES {
         let (edge, xi, xj) = (EdgeSE2::new(se2(&mut rng)), se2(&mut rng), se2(&mut rng));
-        check_binary(&edge, &xi, &xj);
+        check_binary(&edge, &xi, &xj, &mut rng);
         // g2o's definition: t2v(Z⁻¹ · (Xᵢ⁻¹ · Xⱼ)).
         let d = edge.measurement().inverse().compose(&xi.between(&xj));
         let e = edge.error(&xi, &xj);
@@ -90,7 +116,8 @@ fn edge_se2_xy_jacobians() {
     for _ in 0..STATES {
         let z = Vector2::new(rng.random_range(-10.0..10.0), rng.random_range(-10.0..10.0));
         let l = Vector2::new(rng.random_range(-30.0..30.0), rng.random_range(-30.0..30.0));
-        check_binary(&EdgeSE2XY::new(z), &se2(&mut rng), &l);
+        let x = se2(&mut rng);
+        check_binary(&EdgeSE2XY::new(z), &x, &l, &mut rng);
     }
 }
 
@@ -119,7 +146,7 @@ fn edge_se3_jacobians() {
         if e.q.quaternion().w.abs() < 1e-3 {
             continue;
         }
-        check_binary(&edge, &xi, &xj);
+        check_binary(&edge, &xi, &xj, &mut rng);
         checked += 1;
     }
 }
@@ -138,6 +165,6 @@ fn edge_se3_jacobians_near_the_optimum() {
             ),
         );
         let xj = xi.compose(&z).compose(&noise);
-        check_binary(&EdgeSE3::new(z), &xi, &xj);
+        check_binary(&EdgeSE3::new(z), &xi, &xj, &mut rng);
     }
 }
