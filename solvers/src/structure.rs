@@ -119,6 +119,29 @@ fn block_pattern(graph: &Graph, block_of: &[u32]) -> (Vec<usize>, Vec<u32>) {
     (col_ptr, row_idx)
 }
 
+/// The upper block triangle (`col_ptr`, `row_idx`) with its blocks
+/// renumbered: block `order[k]` becomes block k.
+fn permuted(col_ptr: &[usize], row_idx: &[u32], order: &[usize]) -> (Vec<usize>, Vec<u32>) {
+    let mut new_index = vec![0u32; order.len()];
+    for (k, &b) in order.iter().enumerate() {
+        new_index[b] = k as u32;
+    }
+    let new_index = &new_index;
+    let pairs: Vec<(u32, u32)> = (0..order.len())
+        .flat_map(|c| {
+            row_idx[col_ptr[c]..col_ptr[c + 1]].iter().map(move |&r| {
+                let (a, b) = (new_index[r as usize], new_index[c]);
+                (a.max(b), a.min(b))
+            })
+        })
+        .collect();
+    let (col_ptr, mut row_idx) = group_by_key(order.len(), &pairs);
+    for c in 0..order.len() {
+        row_idx[col_ptr[c]..col_ptr[c + 1]].sort_unstable();
+    }
+    (col_ptr, row_idx)
+}
+
 impl HessianStructure {
     /// Builds the structure; `fixed[v]` holds vertex index v constant. The
     /// free vertices take their columns in the block order `ordering` asks
@@ -133,14 +156,14 @@ impl HessianStructure {
         // there is one, so that H is assembled already permuted (faer then
         // factorises it as it is, instead of permuting it every iteration).
         let mut free: Vec<usize> = (0..n).filter(|&v| !fixed[v]).collect();
+        let (mut block_col_ptr, mut block_row_idx) = block_pattern(graph, &block_indices(n, &free));
         if matches!(ordering, Ordering::BlockAmd | Ordering::Schur) {
-            let (col_ptr, row_idx) = block_pattern(graph, &block_indices(n, &free));
             let pattern = SymbolicSparseColMat::new_checked(
                 free.len(),
                 free.len(),
-                col_ptr,
+                block_col_ptr.clone(),
                 None,
-                row_idx.into_iter().map(|r| r as usize).collect(),
+                block_row_idx.iter().map(|&r| r as usize).collect(),
             );
             let dims: Vec<usize> = free.iter().map(|&v| vdim[v]).collect();
             let is_pose: Vec<bool> = free.iter().map(|&v| graph.vertex(v).kind.is_pose).collect();
@@ -152,6 +175,7 @@ impl HessianStructure {
                 },
                 ordering,
             )?;
+            (block_col_ptr, block_row_idx) = permuted(&block_col_ptr, &block_row_idx, &order);
             free = order.iter().map(|&k| free[k]).collect();
         }
         let block_of = block_indices(n, &free);
@@ -166,7 +190,6 @@ impl HessianStructure {
             .map(|v| (block_of[v] != u32::MAX).then(|| column_of_block[block_of[v] as usize]))
             .collect();
         let blocks = free.len();
-        let (block_col_ptr, block_row_idx) = block_pattern(graph, &block_of);
         let block_index = |r: u32, c: u32| -> usize {
             let range = block_col_ptr[c as usize]..block_col_ptr[c as usize + 1];
             range.start + block_row_idx[range].binary_search(&r).unwrap_or(0)
@@ -226,6 +249,7 @@ impl HessianStructure {
         let mut row_idx = Vec::with_capacity(nnz);
         let mut row_offset = vec![0u32; block_row_idx.len()];
         let mut diagonal = Vec::with_capacity(dim);
+        let mut above = Vec::new();
         col_ptr.push(0usize);
         for c in 0..blocks {
             let dc = vdim[free[c]];
@@ -234,18 +258,18 @@ impl HessianStructure {
                 row_offset[k] = offset as u32;
                 offset += vdim[free[block_row_idx[k] as usize]];
             }
-            let rows = &block_row_idx[block_col_ptr[c]..block_col_ptr[c + 1]];
+            // The rows above the diagonal block (it comes last), the same
+            // in every scalar column of the block column.
+            above.clear();
+            for &r in &block_row_idx[block_col_ptr[c]..block_col_ptr[c + 1] - 1] {
+                let cr = column_of_block[r as usize];
+                above.extend(cr..cr + vdim[free[r as usize]]);
+            }
+            let cc = column_of_block[c];
             for j in 0..dc {
-                for &r in rows {
-                    let r = r as usize;
-                    let (cr, dr) = (column_of_block[r], vdim[free[r]]);
-                    if r == c {
-                        diagonal.push(row_idx.len() + j);
-                        row_idx.extend(cr..cr + j + 1);
-                    } else {
-                        row_idx.extend(cr..cr + dr);
-                    }
-                }
+                row_idx.extend_from_slice(&above);
+                diagonal.push(row_idx.len() + j);
+                row_idx.extend(cc..=cc + j);
                 col_ptr.push(row_idx.len());
             }
         }

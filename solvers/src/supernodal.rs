@@ -32,8 +32,9 @@ pub(crate) use symbolic::SupernodalSymbolic;
 
 /// Where the entries of H go in L, and where each supernode's update goes.
 pub(crate) struct SupernodalNumeric {
-    /// For each entry of H's upper triangle, its position among L's values.
-    h_to_l: Vec<usize>,
+    /// For each entry of H's upper triangle, its position among L's values
+    /// (`u32`: half the memory to read in each factorisation).
+    h_to_l: Vec<u32>,
     /// Per supernode, the runs of its rows below the diagonal block that
     /// fall in one later supernode: `(first row, end row, rel start)`.
     groups: Vec<(u32, u32, usize)>,
@@ -43,7 +44,7 @@ pub(crate) struct SupernodalNumeric {
     rel: Vec<u32>,
     /// Per row below a supernode's diagonal block (in faer's row-index
     /// order), the position among L's values where its column starts.
-    column_start: Vec<usize>,
+    column_start: Vec<u32>,
     /// One supernode's update, L₂₁L₂₁ᵀ (lower triangle, column-major).
     update: Vec<f64>,
     scratch: MemBuffer,
@@ -78,7 +79,7 @@ fn h_positions(
     symbolic: &SupernodalSymbolic,
     upper: SymbolicSparseColMatRef<'_, usize>,
     supernode_of: &[usize],
-) -> Option<Vec<usize>> {
+) -> Option<Vec<u32>> {
     let val_ptr = symbolic.val_ptr();
     // Per supernode, the last column looked up and its row's position.
     let mut recent = vec![(usize::MAX, 0); symbolic.n_supernodes()];
@@ -101,7 +102,7 @@ fn h_positions(
                 rows = height;
                 base = (val_ptr[s] + p).wrapping_sub(start * rows);
             }
-            h_to_l.push(base.wrapping_add(r * rows));
+            h_to_l.push(base.wrapping_add(r * rows) as u32);
         }
     }
     Some(h_to_l)
@@ -150,13 +151,15 @@ fn update_positions(
 impl SupernodalNumeric {
     /// The plan for H's upper triangle `upper` on `symbolic` (the
     /// structure of its factor). `None` if the pattern does not fit the
-    /// structure (which the analysis rules out) or the plan would outgrow
-    /// the factor.
+    /// structure (which the analysis rules out), the plan would outgrow the
+    /// factor, or the factor has more values than its `u32` positions reach
+    /// (32 GB of them).
     pub(crate) fn new(
         symbolic: &SupernodalSymbolic,
         upper: SymbolicSparseColMatRef<'_, usize>,
         par: Par,
     ) -> Option<Self> {
+        u32::try_from(symbolic.len_val()).ok()?;
         let n_supernodes = symbolic.n_supernodes();
         let val_ptr = symbolic.val_ptr();
         let mut supernode_of = vec![0; upper.ncols()];
@@ -185,7 +188,7 @@ impl SupernodalNumeric {
                 column_start.extend(
                     pattern[j..end]
                         .iter()
-                        .map(|&c| val_ptr[s] + (c - start) * rows),
+                        .map(|&c| (val_ptr[s] + (c - start) * rows) as u32),
                 );
                 j = end;
             }
@@ -225,7 +228,7 @@ impl SupernodalNumeric {
     ) -> Result<(), NotPositiveDefinite> {
         values.fill(0.0);
         for (&p, &x) in self.h_to_l.iter().zip(h) {
-            values[p] = x;
+            values[p as usize] = x;
         }
         let val_ptr = symbolic.val_ptr();
         let mut first_row = 0;
@@ -296,7 +299,7 @@ impl SupernodalNumeric {
             for j in first..end {
                 let rel = &rel[j - first..];
                 let last = rel[rel.len() - 1] as usize;
-                let target = &mut later[column_start[j] - offset..][..=last];
+                let target = &mut later[column_start[j] as usize - offset..][..=last];
                 for (&r, &u) in rel.iter().zip(&self.update[j * below + j..(j + 1) * below]) {
                     target[r as usize] -= u;
                 }

@@ -80,9 +80,8 @@ impl SupernodalSymbolic {
         // continue that block's (the same pattern).
         let mut fundamental = vec![0];
         for (b, &children) in children.iter().enumerate().skip(1) {
-            let joins = parent(b - 1) == Some(b)
-                && children == 1
-                && degree(b - 1) == width(b) + degree(b);
+            let joins =
+                parent(b - 1) == Some(b) && children == 1 && degree(b - 1) == width(b) + degree(b);
             if !joins {
                 fundamental.push(b);
             }
