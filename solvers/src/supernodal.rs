@@ -85,24 +85,30 @@ fn h_positions(
     let mut recent = vec![(usize::MAX, 0); symbolic.n_supernodes()];
     let mut h_to_l = Vec::with_capacity(upper.row_idx().len());
     for c in 0..upper.ncols() {
-        // Row c of L's column r is at base + r·rows for every r in supernode s.
-        let (mut last, mut base, mut rows) = (usize::MAX, 0usize, 0usize);
-        for &r in upper.row_idx_of_col_raw(c) {
+        // H's rows in column c, in runs that fall in one supernode s: row c
+        // of L's column r is at base + r·height for every r of the run.
+        let mut rows = upper.row_idx_of_col_raw(c);
+        while let Some(&r) = rows.first() {
             let s = *supernode_of.get(r)?;
-            if s != last {
-                last = s;
-                let (start, width, height, below) = symbolic.supernode(s);
-                let (col, p) = recent[s];
-                let p = if c.checked_sub(1) == Some(col) && row_at(symbolic, s, p + 1) == Some(c) {
-                    p + 1
-                } else {
-                    position(c, start, width, below)?
-                };
-                recent[s] = (c, p);
-                rows = height;
-                base = (val_ptr[s] + p).wrapping_sub(start * rows);
-            }
-            h_to_l.push(base.wrapping_add(r * rows) as u32);
+            let (start, width, height, below) = symbolic.supernode(s);
+            let (col, p) = recent[s];
+            let p = if c.checked_sub(1) == Some(col) && row_at(symbolic, s, p + 1) == Some(c) {
+                p + 1
+            } else {
+                position(c, start, width, below)?
+            };
+            recent[s] = (c, p);
+            let base = (val_ptr[s] + p).wrapping_sub(start * height);
+            let run = rows
+                .iter()
+                .position(|&r| r >= start + width)
+                .unwrap_or(rows.len());
+            h_to_l.extend(
+                rows[..run]
+                    .iter()
+                    .map(|&r| base.wrapping_add(r * height) as u32),
+            );
+            rows = &rows[run..];
         }
     }
     Some(h_to_l)
@@ -122,26 +128,26 @@ fn update_positions(
         .map(|g| (targets[g as usize].0, g))
         .collect();
     let (start_of, order) = group_by_key(n_supernodes, &by_target);
-    let mut position = vec![0u32; symbolic.dim()];
+    // Each row's supernode (the last one mapped that holds it) and position there.
+    let mut position = vec![(u32::MAX, 0u32); symbolic.dim()];
     let mut rel = vec![0u32; len];
     for s in 0..n_supernodes {
         let (start, width, _, below) = symbolic.supernode(s);
-        for (p, r) in (start..start + width)
-            .chain(below.iter().copied())
-            .enumerate()
-        {
-            position[r] = p as u32;
+        let rows = (start..start + width).chain(below.iter().copied());
+        for (p, r) in rows.enumerate() {
+            position[r] = (s as u32, p as u32);
         }
         for &g in &order[start_of[s]..start_of[s + 1]] {
             let (first, _, rel_start) = groups[g as usize];
             let (_, _, _, pattern) = symbolic.supernode(targets[g as usize].1 as usize);
             let pattern = &pattern[first as usize..];
             for (out, &r) in rel[rel_start..][..pattern.len()].iter_mut().zip(pattern) {
-                *out = position[r];
-                // The structure puts every row there; a stale entry would not.
-                if row_at(symbolic, s, *out as usize) != Some(r) {
+                let (owner, p) = position[r];
+                // The structure puts every row there.
+                if owner != s as u32 {
                     return None;
                 }
+                *out = p;
             }
         }
     }
