@@ -136,9 +136,11 @@ pub trait FactorGroup: Send + Sync + 'static {
     }
 }
 
-struct Entry<T, const E: usize, const N: usize> {
+/// An edge and its information. Its vertices are kept apart, in one array
+/// per group, so that the passes over the graph's structure read 16 bytes
+/// per edge instead of the whole entry.
+struct Entry<T, const E: usize> {
     edge: T,
-    vertices: [usize; N],
     /// Ω as computed with: subnormal entries flushed to zero.
     information: SMatrix<f64, E, E>,
     /// Ω as given, kept only when flushing changed it (for writing it back).
@@ -146,16 +148,15 @@ struct Entry<T, const E: usize, const N: usize> {
     kernel: Option<RobustKernel>,
 }
 
-impl<T, const E: usize, const N: usize> Entry<T, E, N> {
+impl<T, const E: usize> Entry<T, E> {
     /// Subnormal entries of Ω (such as FRH.g2o's 6.95335e-310) change no digit
     /// of χ² but slow every product they enter by two orders of magnitude on
     /// x86, so the solver computes with zeros in their place.
-    fn new(edge: T, vertices: [usize; N], information: SMatrix<f64, E, E>) -> Self {
+    fn new(edge: T, information: SMatrix<f64, E, E>) -> Self {
         let flushed = information.map(|w| if w.is_subnormal() { 0.0 } else { w });
         let given = (flushed != information).then(|| Box::new(information));
         Self {
             edge,
-            vertices,
             information: flushed,
             given,
             kernel: None,
@@ -186,7 +187,8 @@ impl<T, const E: usize, const N: usize> Entry<T, E, N> {
 
 /// All edges of one unary type.
 pub struct UnaryGroup<T, const E: usize, const D: usize> {
-    entries: Vec<Entry<T, E, 1>>,
+    entries: Vec<Entry<T, E>>,
+    vertices: Vec<[usize; 1]>,
     dims: [usize; 1],
 }
 
@@ -195,23 +197,24 @@ impl<T: UnaryEdge<E, D>, const E: usize, const D: usize> UnaryGroup<T, E, D> {
     pub fn new() -> Self {
         Self {
             entries: Vec::new(),
+            vertices: Vec::new(),
             dims: [D],
         }
     }
     /// Appends an edge (vertex index and information already checked).
     pub fn push(&mut self, edge: T, vertex: usize, information: SMatrix<f64, E, E>) -> usize {
-        self.entries.push(Entry::new(edge, [vertex], information));
+        self.entries.push(Entry::new(edge, information));
+        self.vertices.push([vertex]);
         self.entries.len() - 1
     }
     fn eval(&self, i: usize, values: &Values) -> (T::V, SVector<f64, E>) {
-        let en = &self.entries[i];
-        let x = values.get::<T::V, D>(en.vertices[0]);
-        let e = en.edge.error(&x);
+        let x = values.get::<T::V, D>(self.vertices[i][0]);
+        let e = self.entries[i].edge.error(&x);
         (x, e)
     }
     /// Linearises edge `i` (`en`) into `sink`: JᵀΩJ, JᵀΩe, χ².
     #[inline(always)]
-    fn emit(&self, i: usize, en: &Entry<T, E, 1>, values: &Values, sink: &mut impl Sink) {
+    fn emit(&self, i: usize, en: &Entry<T, E>, values: &Values, sink: &mut impl Sink) {
         let (x, e) = self.eval(i, values);
         let j = en.edge.jacobian(&x);
         let (chi2, weight) = en.robust(&e);
@@ -245,7 +248,7 @@ impl<T: UnaryEdge<E, D>, const E: usize, const D: usize> FactorGroup for UnaryGr
         &self.dims
     }
     fn vertices(&self, i: usize) -> &[usize] {
-        &self.entries[i].vertices
+        &self.vertices[i]
     }
     fn edge(&self, i: usize) -> &dyn Any {
         &self.entries[i].edge
@@ -305,7 +308,8 @@ impl<T: UnaryEdge<E, D>, const E: usize, const D: usize> FactorGroup for UnaryGr
 
 /// All edges of one binary type.
 pub struct BinaryGroup<T, const E: usize, const D1: usize, const D2: usize> {
-    entries: Vec<Entry<T, E, 2>>,
+    entries: Vec<Entry<T, E>>,
+    vertices: Vec<[usize; 2]>,
     dims: [usize; 2],
 }
 
@@ -316,6 +320,7 @@ impl<T: BinaryEdge<E, D1, D2>, const E: usize, const D1: usize, const D2: usize>
     pub fn new() -> Self {
         Self {
             entries: Vec::new(),
+            vertices: Vec::new(),
             dims: [D1, D2],
         }
     }
@@ -326,22 +331,21 @@ impl<T: BinaryEdge<E, D1, D2>, const E: usize, const D1: usize, const D2: usize>
         vertices: [usize; 2],
         information: SMatrix<f64, E, E>,
     ) -> usize {
-        self.entries.push(Entry::new(edge, vertices, information));
+        self.entries.push(Entry::new(edge, information));
+        self.vertices.push(vertices);
         self.entries.len() - 1
     }
     fn eval(&self, i: usize, values: &Values) -> (T::V1, T::V2, SVector<f64, E>) {
-        let en = &self.entries[i];
-        let x1 = values.get::<T::V1, D1>(en.vertices[0]);
-        let x2 = values.get::<T::V2, D2>(en.vertices[1]);
-        let e = en.edge.error(&x1, &x2);
+        let [a, b] = self.vertices[i];
+        let (x1, x2) = (values.get::<T::V1, D1>(a), values.get::<T::V2, D2>(b));
+        let e = self.entries[i].edge.error(&x1, &x2);
         (x1, x2, e)
     }
-    /// Linearises `en` into `sink`: the blocks (1, 1), (1, 2), (2, 2) of
-    /// JᵀΩJ, each vertex's JᵀΩe, χ².
+    /// Linearises `en` on vertices `a` and `b` into `sink`: the blocks
+    /// (1, 1), (1, 2), (2, 2) of JᵀΩJ, each vertex's JᵀΩe, χ².
     #[inline(always)]
-    fn emit(en: &Entry<T, E, 2>, values: &Values, sink: &mut impl Sink) {
-        let x1 = values.get::<T::V1, D1>(en.vertices[0]);
-        let x2 = values.get::<T::V2, D2>(en.vertices[1]);
+    fn emit(en: &Entry<T, E>, [a, b]: [usize; 2], values: &Values, sink: &mut impl Sink) {
+        let (x1, x2) = (values.get::<T::V1, D1>(a), values.get::<T::V2, D2>(b));
         let lin = en.edge.linearize(&x1, &x2);
         let (chi2, weight) = en.robust(&lin.0);
         let blocks = en.edge.normal_blocks(&lin, &(en.information * weight));
@@ -381,7 +385,7 @@ impl<T: BinaryEdge<E, D1, D2>, const E: usize, const D1: usize, const D2: usize>
         &self.dims
     }
     fn vertices(&self, i: usize) -> &[usize] {
-        &self.entries[i].vertices
+        &self.vertices[i]
     }
     fn edge(&self, i: usize) -> &dyn Any {
         &self.entries[i].edge
@@ -408,11 +412,13 @@ impl<T: BinaryEdge<E, D1, D2>, const E: usize, const D1: usize, const D2: usize>
         let gradients = [g1, g1 + D1];
         out.par_chunks_mut(stride)
             .zip(self.entries.par_iter())
+            .zip(self.vertices.par_iter())
             .with_min_len(CHUNK)
-            .for_each(|(slot, en)| {
+            .for_each(|((slot, en), &vertices)| {
                 let (blocks, gradients) = (&blocks[..], &gradients[..]);
                 Self::emit(
                     en,
+                    vertices,
                     values,
                     &mut SlotSink {
                         slot,
@@ -424,8 +430,9 @@ impl<T: BinaryEdge<E, D1, D2>, const E: usize, const D1: usize, const D2: usize>
     }
     fn linearize_into(&self, values: &Values, out: Scatter<'_>) {
         let targets = out.blocks.chunks_exact(3).zip(out.columns.chunks_exact(2));
-        for ((en, (blocks, columns)), chi2) in
-            self.entries.iter().zip(targets).zip(out.chi2.iter_mut())
+        let edges = self.entries.iter().zip(self.vertices.iter());
+        for (((en, &vertices), (blocks, columns)), chi2) in
+            edges.zip(targets).zip(out.chi2.iter_mut())
         {
             let mut sink = HessianSink {
                 hessian: &mut *out.hessian,
@@ -435,12 +442,12 @@ impl<T: BinaryEdge<E, D1, D2>, const E: usize, const D1: usize, const D2: usize>
                 chi2,
                 diagonal: &[true, false, true],
             };
-            Self::emit(en, values, &mut sink);
+            Self::emit(en, vertices, values, &mut sink);
         }
     }
     fn propagate(&self, i: usize, known: usize, values: &mut Values) -> Option<usize> {
         let en = &self.entries[i];
-        let [a, b] = en.vertices;
+        let [a, b] = self.vertices[i];
         if known == 0 {
             let x2 = en.edge.predict_second(&values.get::<T::V1, D1>(a))?;
             values.set(b, &x2);

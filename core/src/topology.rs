@@ -67,17 +67,19 @@ impl Graph {
                 }
             }
         }
-        let groups = sets.groups();
+        // Each set's root is its least member, so it is labelled first.
         let mut label = vec![0; self.num_vertices()];
-        for (c, group) in groups.iter().enumerate() {
-            for &v in group {
-                label[v] = c;
-            }
+        let mut count = 0;
+        for v in 0..self.num_vertices() {
+            let root = sets.find(v);
+            label[v] = if root == v {
+                count += 1;
+                count - 1
+            } else {
+                label[root]
+            };
         }
-        Components {
-            label,
-            count: groups.len(),
-        }
+        Components { label, count }
     }
 
     /// The vertices to hold fixed so that every component has a gauge: for each
