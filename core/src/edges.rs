@@ -22,9 +22,8 @@ fn rotation_transpose((s, c): (f64, f64)) -> Matrix2<f64> {
 pub struct EdgeSE2 {
     measurement: SE2,
     inverse: SE2,
-    // Rotations of Z⁻¹ and Zᵀ, computed once: sines and cosines are most of
+    // Zᵀ's rotation (Z⁻¹'s), computed once: sines and cosines are most of
     // an SE2 edge's linearisation.
-    inverse_rotation: Matrix2<f64>,
     measurement_rotation_t: Matrix2<f64>,
 }
 
@@ -35,7 +34,6 @@ impl EdgeSE2 {
         Self {
             measurement,
             inverse,
-            inverse_rotation: inverse.rotation(),
             measurement_rotation_t: measurement.rotation().transpose(),
         }
     }
@@ -47,7 +45,7 @@ impl EdgeSE2 {
     /// Z⁻¹ · (Xᵢ⁻¹ · Xⱼ), with Z⁻¹'s rotation precomputed and θᵢ's (sin, cos) given.
     fn error_at(&self, sc: (f64, f64), xi: &SE2, xj: &SE2) -> Vector3<f64> {
         let d = rotation_transpose(sc) * (xj.t - xi.t);
-        let t = self.inverse.t + self.inverse_rotation * d;
+        let t = self.inverse.t + self.measurement_rotation_t * d;
         let theta = normalize_angle(xj.theta - xi.theta);
         Vector3::new(t.x, t.y, normalize_angle(self.inverse.theta + theta))
     }

@@ -348,7 +348,14 @@ impl<T: BinaryEdge<E, D1, D2>, const E: usize, const D1: usize, const D2: usize>
         let (x1, x2) = (values.get::<T::V1, D1>(a), values.get::<T::V2, D2>(b));
         let lin = en.edge.linearize(&x1, &x2);
         let (chi2, weight) = en.robust(&lin.0);
-        let blocks = en.edge.normal_blocks(&lin, &(en.information * weight));
+        let weighted;
+        let w = if weight == 1.0 {
+            &en.information
+        } else {
+            weighted = en.information * weight;
+            &weighted
+        };
+        let blocks = en.edge.normal_blocks(&lin, w);
         sink.block(0, &blocks.h11);
         sink.block(1, &blocks.h12);
         sink.block(2, &blocks.h22);
