@@ -18,8 +18,9 @@ use faer::sparse::{SparseColMatRef, SymbolicSparseColMatRef};
 /// The factor's structure from the block analysis, before any values.
 #[derive(Debug)]
 pub struct SimplicialSymbolic {
-    /// For each block row K of L, the block columns J < K with L[K, J] ≠ 0,
-    /// ascending (`row_blocks[row_start[K]..row_start[K + 1]]`).
+    /// For each block row K of L, the block columns J < K with L[K, J] ≠ 0
+    /// (`row_blocks[row_start[K]..row_start[K + 1]]`), in the order the
+    /// elimination tree meets them; [`SimplicialCholesky::new`] sorts them.
     row_start: Vec<usize>,
     row_blocks: Vec<u32>,
     /// Each block's parent in the elimination tree (`u32::MAX` for roots).
@@ -59,7 +60,6 @@ impl SimplicialSymbolic {
         row_start.push(0);
         for k in 0..nb {
             visited[k] = k;
-            let begin = row_blocks.len();
             for &first in pattern.row_idx_of_col_raw(k) {
                 let mut i = first;
                 while i < k && visited[i] != k {
@@ -72,7 +72,6 @@ impl SimplicialSymbolic {
                     i = parent[i];
                 }
             }
-            row_blocks[begin..].sort_unstable();
             row_start.push(row_blocks.len());
         }
         let mut col_ptr = Vec::with_capacity(dim + 1);
@@ -148,7 +147,8 @@ impl SimplicialSymbolic {
         group_by_key(nb, &pairs)
     }
 
-    /// The block columns J < `k` with L[k, J] ≠ 0, ascending.
+    /// The block columns J < `k` with L[k, J] ≠ 0, in no particular order
+    /// (ascending once a simplicial factor holds the analysis).
     pub(crate) fn row(&self, k: usize) -> &[u32] {
         &self.row_blocks[self.row_start[k]..self.row_start[k + 1]]
     }
@@ -179,9 +179,14 @@ pub struct SimplicialCholesky {
 impl SimplicialCholesky {
     /// Takes the analysis and lays out the factor's rows. `None` if H's
     /// dimension does not fit the `u32` row indices.
-    pub fn new(symbolic: SimplicialSymbolic) -> Option<Self> {
+    pub fn new(mut symbolic: SimplicialSymbolic) -> Option<Self> {
         let n = symbolic.dim();
         u32::try_from(n).ok()?;
+        // The factorisation reads each row's columns in ascending order.
+        for k in 0..symbolic.row_start.len() - 1 {
+            let (start, end) = (symbolic.row_start[k], symbolic.row_start[k + 1]);
+            symbolic.row_blocks[start..end].sort_unstable();
+        }
         let mut row_idx: Vec<u32> = Vec::with_capacity(symbolic.len_val());
         let (col_start, col_blocks) = symbolic.columns();
         for jb in 0..symbolic.block_column.len() - 1 {

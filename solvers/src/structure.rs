@@ -190,9 +190,13 @@ impl HessianStructure {
             .map(|v| (block_of[v] != u32::MAX).then(|| column_of_block[block_of[v] as usize]))
             .collect();
         let blocks = free.len();
+        // Block (r, c), r ≤ c: the diagonal block comes last in its column.
         let block_index = |r: u32, c: u32| -> usize {
             let range = block_col_ptr[c as usize]..block_col_ptr[c as usize + 1];
-            range.start + block_row_idx[range].binary_search(&r).unwrap_or(0)
+            match r == c {
+                true => range.end - 1,
+                false => range.start + block_row_idx[range].binary_search(&r).unwrap_or(0),
+            }
         };
 
         // Where every edge's blocks and gradient segments add: (block of H,
