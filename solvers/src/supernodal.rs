@@ -61,55 +61,56 @@ fn position(r: usize, start: usize, width: usize, below: &[usize]) -> Option<usi
     }
 }
 
-/// Supernode `s`'s row at position `p` (its columns' rows first).
-fn row_at(symbolic: &SupernodalSymbolic, s: usize, p: usize) -> Option<usize> {
-    let (start, width, _, below) = symbolic.supernode(s);
-    match p.checked_sub(width) {
-        None => Some(start + p),
-        Some(q) => below.get(q).copied(),
-    }
-}
-
 /// For each entry of H's upper triangle `upper`, its position among L's
-/// values. H's entry (r, c), r ≤ c, is L's (c, r): column r, row c. Row
-/// c's position is the same in every column of r's supernode, and one
-/// past row c − 1's when that comes just before it there (the rows of a
-/// vertex block), so it is searched for once per block of H.
+/// values. H's entry (r, c), r ≤ c, is L's (c, r): column r, row c. H's
+/// rows in column c fall in runs, each in one supernode s, where row c's
+/// position p is the same in all of s's columns: the run's entries are at
+/// base + r·height. The columns of a vertex block have the same rows above
+/// the block, so each column after the block's first has its predecessor's
+/// runs, row c one position further down, and the diagonal run one row
+/// longer; only a block's first column searches for its positions.
 fn h_positions(
     symbolic: &SupernodalSymbolic,
     upper: SymbolicSparseColMatRef<'_, usize>,
     supernode_of: &[usize],
 ) -> Option<Vec<u32>> {
     let val_ptr = symbolic.val_ptr();
-    // Per supernode, the last column looked up and its row's position.
-    let mut recent = vec![(usize::MAX, 0); symbolic.n_supernodes()];
     let mut h_to_l = Vec::with_capacity(upper.row_idx().len());
+    // The current column's runs: (rows, base, height).
+    let mut runs: Vec<(usize, usize, usize)> = Vec::new();
+    let mut previous: &[usize] = &[];
     for c in 0..upper.ncols() {
-        // H's rows in column c, in runs that fall in one supernode s: row c
-        // of L's column r is at base + r·height for every r of the run.
-        let mut rows = upper.row_idx_of_col_raw(c);
-        while let Some(&r) = rows.first() {
-            let s = *supernode_of.get(r)?;
-            let (start, width, height, below) = symbolic.supernode(s);
-            let (col, p) = recent[s];
-            let p = if c.checked_sub(1) == Some(col) && row_at(symbolic, s, p + 1) == Some(c) {
-                p + 1
-            } else {
-                position(c, start, width, below)?
-            };
-            recent[s] = (c, p);
-            let base = (val_ptr[s] + p).wrapping_sub(start * height);
-            let run = rows
-                .iter()
-                .position(|&r| r >= start + width)
-                .unwrap_or(rows.len());
-            h_to_l.extend(
-                rows[..run]
+        let rows = upper.row_idx_of_col_raw(c);
+        let continues = c > 0
+            && rows.split_last() == Some((&c, previous))
+            && supernode_of.get(c) == supernode_of.get(c - 1);
+        if continues {
+            runs.iter_mut().for_each(|run| run.1 += 1);
+            if let Some(last) = runs.last_mut() {
+                last.0 += 1;
+            }
+        } else {
+            runs.clear();
+            let mut rest = rows;
+            while let Some(&r) = rest.first() {
+                let s = *supernode_of.get(r)?;
+                let (start, width, height, below) = symbolic.supernode(s);
+                let p = position(c, start, width, below)?;
+                let len = rest
                     .iter()
-                    .map(|&r| base.wrapping_add(r * height) as u32),
-            );
-            rows = &rows[run..];
+                    .position(|&r| r >= start + width)
+                    .unwrap_or(rest.len());
+                runs.push((len, (val_ptr[s] + p).wrapping_sub(start * height), height));
+                rest = &rest[len..];
+            }
         }
+        let mut rest = rows;
+        for &(len, base, height) in &runs {
+            let (run, after) = rest.split_at(len);
+            h_to_l.extend(run.iter().map(|&r| base.wrapping_add(r * height) as u32));
+            rest = after;
+        }
+        previous = rows;
     }
     Some(h_to_l)
 }
