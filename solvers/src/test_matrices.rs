@@ -1,6 +1,10 @@
 //! Random block-structured Hessians for the factorisation tests.
 
+use faer::Side;
 use faer::sparse::SymbolicSparseColMat;
+use faer::sparse::linalg::cholesky::{
+    CholeskySymbolicParams, SymbolicCholesky, SymmetricOrdering, factorize_symbolic_cholesky,
+};
 use rand::Rng;
 use rand::rngs::StdRng;
 
@@ -85,4 +89,17 @@ pub(crate) fn upper_times(
         }
     }
     out
+}
+
+/// faer's symbolic analysis of the upper triangle `pattern`, unpermuted.
+pub(crate) fn faer_analysis(
+    pattern: &SymbolicSparseColMat<usize>,
+    params: CholeskySymbolicParams<'_>,
+) -> Result<SymbolicCholesky<usize>, faer::sparse::FaerError> {
+    factorize_symbolic_cholesky(
+        pattern.as_ref(),
+        Side::Upper,
+        SymmetricOrdering::Identity,
+        params,
+    )
 }

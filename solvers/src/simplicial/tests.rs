@@ -1,16 +1,14 @@
 //! The block analysis and factorisation against faer, pivots, flops.
 
 use super::*;
-use crate::test_matrices::{random_h, upper_times};
+use crate::test_matrices::{faer_analysis, random_h, upper_times};
 use faer::Par;
 use faer::Side;
 use faer::dyn_stack::{MemBuffer, MemStack};
 use faer::linalg::cholesky::llt::factor::LltRegularization;
 use faer::sparse::SymbolicSparseColMat;
 use faer::sparse::linalg::SupernodalThreshold;
-use faer::sparse::linalg::cholesky::{
-    CholeskySymbolicParams, SymbolicCholeskyRaw, SymmetricOrdering, factorize_symbolic_cholesky,
-};
+use faer::sparse::linalg::cholesky::{CholeskySymbolicParams, SymbolicCholeskyRaw};
 use rand::rngs::StdRng;
 use rand::{Rng, SeedableRng};
 
@@ -29,13 +27,7 @@ fn block_simplicial_factor_matches_faer() {
             supernodal_flop_ratio_threshold: SupernodalThreshold::FORCE_SIMPLICIAL,
             ..Default::default()
         };
-        let faer_symbolic = factorize_symbolic_cholesky(
-            scalar.as_ref(),
-            Side::Upper,
-            SymmetricOrdering::Identity,
-            params,
-        )
-        .unwrap();
+        let faer_symbolic = faer_analysis(&scalar, params).unwrap();
         let SymbolicCholeskyRaw::Simplicial(l) = faer_symbolic.raw() else {
             panic!("simplicial forced");
         };

@@ -3,13 +3,12 @@
 
 use super::*;
 use crate::simplicial::SimplicialSymbolic;
-use crate::test_matrices::{random_h, upper_times};
+use crate::test_matrices::{faer_analysis, random_h, upper_times};
 use faer::Side;
 use faer::sparse::SparseColMatRef;
 use faer::sparse::SymbolicSparseColMat;
 use faer::sparse::linalg::cholesky::{
-    CholeskySymbolicParams, SymbolicCholesky, SymbolicCholeskyRaw, SymmetricOrdering,
-    factorize_symbolic_cholesky,
+    CholeskySymbolicParams, SymbolicCholesky, SymbolicCholeskyRaw,
 };
 use faer::sparse::linalg::{SupernodalThreshold, SymbolicSupernodalParams};
 use rand::rngs::StdRng;
@@ -21,13 +20,7 @@ fn analyze(pattern: &SymbolicSparseColMat<usize>) -> SymbolicCholesky<usize> {
         supernodal_flop_ratio_threshold: SupernodalThreshold::FORCE_SUPERNODAL,
         ..Default::default()
     };
-    factorize_symbolic_cholesky(
-        pattern.as_ref(),
-        Side::Upper,
-        SymmetricOrdering::Identity,
-        params,
-    )
-    .unwrap()
+    faer_analysis(pattern, params).unwrap()
 }
 
 /// faer's own numeric factorisation: the values, or the failing pivot.
@@ -91,13 +84,7 @@ fn supernodes_from_the_blocks_are_faers() {
             supernodal_params: SymbolicSupernodalParams { relax: None },
             ..Default::default()
         };
-        let fundamental = factorize_symbolic_cholesky(
-            pattern.as_ref(),
-            Side::Upper,
-            SymmetricOrdering::Identity,
-            params,
-        )
-        .unwrap();
+        let fundamental = faer_analysis(&pattern, params).unwrap();
         let SymbolicCholeskyRaw::Supernodal(fundamental) = fundamental.raw() else {
             panic!("not supernodal")
         };
