@@ -138,19 +138,27 @@ fn par(config: &LinearSolverConfig) -> Par {
 /// Approximate minimum degree order of the blocks of `pattern`.
 fn amd(pattern: SymbolicSparseColMatRef<'_, usize>) -> Result<Vec<usize>, SolveError> {
     let n = pattern.ncols();
-    let (mut perm, mut perm_inv) = (vec![0usize; n], vec![0usize; n]);
     let nnz = pattern.row_idx().len();
-    let mut scratch = MemBuffer::try_new(faer::sparse::linalg::amd::order_scratch::<usize>(n, nnz))
+    // faer's AMD on u32 indices: its work arrays take half the memory.
+    let narrow =
+        |v: &[usize]| -> Option<Vec<u32>> { v.iter().map(|&x| u32::try_from(x).ok()).collect() };
+    let (Some(col_ptr), Some(row_idx)) = (narrow(pattern.col_ptr()), narrow(pattern.row_idx()))
+    else {
+        return Err(SolveError::TooLarge { entries: nnz });
+    };
+    let pattern = SymbolicSparseColMat::new_checked(n, n, col_ptr, None, row_idx);
+    let (mut perm, mut perm_inv) = (vec![0u32; n], vec![0u32; n]);
+    let mut scratch = MemBuffer::try_new(faer::sparse::linalg::amd::order_scratch::<u32>(n, nnz))
         .map_err(|_| SolveError::OutOfMemory)?;
     faer::sparse::linalg::amd::order(
         &mut perm,
         &mut perm_inv,
-        pattern,
+        pattern.as_ref(),
         Default::default(),
         MemStack::new(&mut scratch),
     )
     .map_err(|e| SolveError::Analysis(format!("{e:?}")))?;
-    Ok(perm)
+    Ok(perm.into_iter().map(|k| k as usize).collect())
 }
 
 /// The landmarks first, then the poses in AMD order of the pattern the
