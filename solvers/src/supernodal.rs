@@ -42,7 +42,7 @@ pub(crate) struct SupernodalNumeric {
     /// For each group, the positions within that later supernode's columns
     /// of the rows from the group's first on.
     rel: Vec<u32>,
-    /// Per row below a supernode's diagonal block (in faer's row-index
+    /// Per row below a supernode's diagonal block (in the structure's row
     /// order), the position among L's values where its column starts.
     column_start: Vec<u32>,
     /// One supernode's update, L₂₁L₂₁ᵀ (lower triangle, column-major).
