@@ -8,10 +8,9 @@ use faer::sparse::linalg::cholesky::{
 use rand::Rng;
 use rand::rngs::StdRng;
 
-/// A random H with dense blocks of sizes 1–8 (rows formed together up
-/// to 6, one by one above): a chain of blocks plus
-/// random couplings, diagonally dominant. Returns the block pattern,
-/// the sizes, the scalar pattern and its values (upper triangles).
+/// A random H ([`block_h`]) with blocks of sizes 1–8 (rows formed
+/// together up to 6, one by one above): a chain of blocks plus random
+/// couplings.
 pub(crate) fn random_h(
     rng: &mut StdRng,
 ) -> (
@@ -28,6 +27,24 @@ pub(crate) fn random_h(
         let (a, b) = (rng.random_range(0..nb), rng.random_range(0..nb));
         rows[a.max(b)].push(a.min(b));
     }
+    block_h(rng, dims, rows)
+}
+
+/// The H with blocks of sizes `dims` whose upper block triangle holds, in
+/// block column c, the blocks of the rows `rows[c]` (c itself among them):
+/// dense blocks of random values, diagonally dominant. Returns the block
+/// pattern, the sizes, the scalar pattern and its values (upper triangles).
+pub(crate) fn block_h(
+    rng: &mut StdRng,
+    dims: Vec<usize>,
+    mut rows: Vec<Vec<usize>>,
+) -> (
+    SymbolicSparseColMat<usize>,
+    Vec<usize>,
+    SymbolicSparseColMat<usize>,
+    Vec<f64>,
+) {
+    let nb = dims.len();
     // Each block's first scalar column, and the dimension at the end.
     let first: Vec<usize> = std::iter::once(0)
         .chain(dims.iter().scan(0, |end, &d| {

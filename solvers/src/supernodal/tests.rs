@@ -216,3 +216,42 @@ fn dot_in_lanes_is_the_dot_product_for_every_length() {
         );
     }
 }
+
+/// Where the supernodal plan would hold more positions than the factor has
+/// values, the analysis falls back to the simplicial factor, which solves
+/// H x = b. Each of k leaf blocks is coupled to all p hub blocks, and each
+/// hub to a tail block of its own: the hubs' columns then differ by their
+/// tails, so they split into many supernodes, and every leaf's update is
+/// placed in each of them, from its first row there down.
+#[test]
+fn a_plan_larger_than_its_factor_falls_back_to_simplicial() {
+    use crate::linear::{Factorization, LinearSolverConfig, SparseCholesky};
+    use crate::test_matrices::block_h;
+    let (k, p) = (300, 100);
+    let rows: Vec<Vec<usize>> = (0..k)
+        .map(|leaf| vec![leaf])
+        .chain((k..k + p).map(|hub| (0..k).chain([hub]).collect()))
+        .chain((k + p..k + 2 * p).map(|tail| vec![tail - p, tail]))
+        .collect();
+    let mut rng = StdRng::seed_from_u64(9);
+    let (blocks, dims, scalar, values) = block_h(&mut rng, vec![1; k + 2 * p], rows);
+    let symbolic = ours(&blocks, &dims);
+    let supernodes = symbolic.n_supernodes();
+    assert!(SupernodalNumeric::new(&symbolic, scalar.as_ref(), Par::Seq).is_none());
+    let config = LinearSolverConfig {
+        factorization: Factorization::Supernodal,
+        ..Default::default()
+    };
+    let mut cholesky =
+        SparseCholesky::analyze(scalar.as_ref(), blocks.as_ref(), &dims, &config).unwrap();
+    assert!(!cholesky.is_supernodal(), "{supernodes} supernodes");
+    let b: Vec<f64> = (0..dims.len())
+        .map(|_| rng.random_range(-1.0..1.0))
+        .collect();
+    let mut x = b.clone();
+    cholesky.factorize(scalar.as_ref(), &values).unwrap();
+    assert!(cholesky.solve_in_place(&mut x));
+    for (a, b) in upper_times(&scalar, &values, &x).iter().zip(&b) {
+        assert!((a - b).abs() <= 1e-9, "{a} vs {b}");
+    }
+}
