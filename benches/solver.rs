@@ -1,7 +1,7 @@
 //! Micro-benchmarks of the solver's phases on synthetic graphs (no files
 //! needed): the one-off setup (Hessian structure and symbolic analysis), one
 //! Gauss-Newton iteration (linearise, assemble, factorise, solve, update, χ²),
-//! and a χ² evaluation. `cargo bench`; the suite against the peers is
+//! a χ² evaluation, and reading and writing the graph as g2o text. `cargo bench`; the suite against the peers is
 //! `scripts/bench.py` (see BENCHMARKS.md).
 
 use cairn::core::Graph;
@@ -55,6 +55,13 @@ fn phases(c: &mut Criterion) {
             })
         });
         group.bench_function("chi2", |b| b.iter(|| black_box(&graph).chi2()));
+        let text = cairn::g2o::to_string(&graph).expect("the graph writes");
+        group.bench_function("read_g2o", |b| {
+            b.iter(|| cairn::g2o::read_bytes(black_box(text.as_bytes()), &Default::default()))
+        });
+        group.bench_function("write_g2o", |b| {
+            b.iter(|| cairn::g2o::to_string(black_box(&graph)))
+        });
         group.finish();
     }
 }

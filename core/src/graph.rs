@@ -2,7 +2,7 @@
 
 use crate::edge::{BinaryEdge, UnaryEdge};
 use crate::factor::{BinaryGroup, FactorGroup, UnaryGroup};
-use crate::information::{InformationIssue, check_information};
+use crate::information::{InformationIssue, PositiveDefinite, check_information};
 use crate::kernel::RobustKernel;
 use crate::values::Values;
 use crate::variable::Variable;
@@ -296,6 +296,41 @@ impl Graph {
     where
         T: BinaryEdge<E, D1, D2>,
     {
+        let ends = self.binary_ends::<T, E, D1, D2>(from, to)?;
+        let information =
+            PositiveDefinite::new(information).map_err(|issue| GraphError::BadInformation {
+                edge: T::NAME,
+                vertices: vec![from, to],
+                issue,
+            })?;
+        Ok(self.push_binary(ends, edge, information))
+    }
+
+    /// [`Graph::add_edge`] with an information matrix checked already.
+    pub fn add_checked_edge<T, const E: usize, const D1: usize, const D2: usize>(
+        &mut self,
+        from: VertexId,
+        to: VertexId,
+        edge: T,
+        information: PositiveDefinite<E>,
+    ) -> Result<usize, GraphError>
+    where
+        T: BinaryEdge<E, D1, D2>,
+    {
+        let ends = self.binary_ends::<T, E, D1, D2>(from, to)?;
+        Ok(self.push_binary(ends, edge, information))
+    }
+
+    /// The indices of a binary edge's vertices, checked: they exist, have
+    /// the edge's vertex types and differ.
+    fn binary_ends<T, const E: usize, const D1: usize, const D2: usize>(
+        &self,
+        from: VertexId,
+        to: VertexId,
+    ) -> Result<[usize; 2], GraphError>
+    where
+        T: BinaryEdge<E, D1, D2>,
+    {
         let a = self.checked_index(from)?;
         let b = self.checked_index(to)?;
         self.check_type::<T::V1>(a, T::NAME, <T::V1 as Variable<D1>>::NAME)?;
@@ -306,19 +341,26 @@ impl Graph {
                 id: from,
             });
         }
-        check_information(&information).map_err(|issue| GraphError::BadInformation {
-            edge: T::NAME,
-            vertices: vec![from, to],
-            issue,
-        })?;
+        Ok([a, b])
+    }
+
+    fn push_binary<T, const E: usize, const D1: usize, const D2: usize>(
+        &mut self,
+        ends: [usize; 2],
+        edge: T,
+        information: PositiveDefinite<E>,
+    ) -> usize
+    where
+        T: BinaryEdge<E, D1, D2>,
+    {
         let g = self.group_index::<T>(|| Box::new(BinaryGroup::<T, E, D1, D2>::new()));
         let group = self.groups[g]
             .as_any_mut()
             .downcast_mut::<BinaryGroup<T, E, D1, D2>>();
         let k = group
-            .map(|grp| grp.push(edge, [a, b], information))
+            .map(|grp| grp.push(edge, ends, *information.matrix()))
             .unwrap_or_else(|| unreachable!());
-        Ok(self.record_edge(g, k))
+        self.record_edge(g, k)
     }
 
     /// Adds a unary edge (a prior) on vertex `id`; returns its edge number.

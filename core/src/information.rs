@@ -48,6 +48,26 @@ pub fn check_information<const E: usize>(m: &SMatrix<f64, E, E>) -> Result<(), I
     }
 }
 
+/// An information matrix that [`check_information`] accepted: finite,
+/// symmetric and positive definite. Lets a caller that checks matrices
+/// itself (the g2o reader, to repair or refuse them by line) hand them to
+/// [`Graph::add_checked_edge`](crate::Graph::add_checked_edge) without a
+/// second check.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct PositiveDefinite<const E: usize>(SMatrix<f64, E, E>);
+
+impl<const E: usize> PositiveDefinite<E> {
+    /// `m`, if [`check_information`] accepts it.
+    pub fn new(m: SMatrix<f64, E, E>) -> Result<Self, InformationIssue> {
+        check_information(&m).map(|()| Self(m))
+    }
+
+    /// The matrix.
+    pub fn matrix(&self) -> &SMatrix<f64, E, E> {
+        &self.0
+    }
+}
+
 /// Whether a Cholesky factorisation proves the symmetric `m` positive
 /// definite with room to spare: its smallest eigenvalue is at least
 /// det / traceᴱ⁻¹ (the other eigenvalues are at most the trace), and that

@@ -41,7 +41,7 @@ pub use edge::{BinaryEdge, Linearized, NormalBlocks, UnaryEdge};
 pub use edges::{EdgePriorSE2, EdgeSE2, EdgeSE2XY, EdgeSE3};
 pub use factor::FactorGroup;
 pub use graph::{EdgeView, Graph, GraphError, VariableKind, VertexId, VertexView};
-pub use information::InformationIssue;
+pub use information::{InformationIssue, PositiveDefinite};
 pub use kernel::RobustKernel;
 pub use nalgebra;
 pub use se2::SE2;

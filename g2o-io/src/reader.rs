@@ -2,7 +2,7 @@
 
 use crate::error::{G2oError, LineError};
 use crate::tags;
-use cairn_core::information::{check_information, nearest_positive_definite};
+use cairn_core::information::{PositiveDefinite, nearest_positive_definite};
 use cairn_core::{
     EdgePriorSE2, EdgeSE2, EdgeSE2XY, EdgeSE3, Graph, InformationIssue, SE2, SE3,
     SpanningTreeReport, Variable, VertexId,
@@ -157,15 +157,18 @@ struct Reader<'a> {
     indefinite: Vec<usize>,
     fix_lines: Vec<(usize, Vec<VertexId>)>,
     landmarks: Vec<PendingLandmark>,
+    /// The current line's fields, kept to reuse its allocation.
+    items: Vec<&'a str>,
 }
 
 impl<'a> Reader<'a> {
     fn new(bytes: &'a [u8], options: ReadOptions) -> Self {
         // Files with no VERTEX line at all (CSAIL, manhattan, kitti_*) get their
         // vertices from the edges.
-        let has_vertices = bytes
-            .split(|&b| b == b'\n')
-            .any(|l| l.trim_ascii_start().starts_with(b"VERTEX_"));
+        let has_vertices = memchr::memmem::find_iter(bytes, b"VERTEX_").any(|at| {
+            let line_start = memchr::memrchr(b'\n', &bytes[..at]).map_or(0, |n| n + 1);
+            bytes[line_start..at].iter().all(u8::is_ascii_whitespace)
+        });
         Self {
             bytes,
             options,
@@ -176,17 +179,19 @@ impl<'a> Reader<'a> {
             indefinite: Vec::new(),
             fix_lines: Vec::new(),
             landmarks: Vec::new(),
+            items: Vec::new(),
         }
     }
 
     fn run(mut self) -> Result<(Graph, LoadReport), G2oError> {
-        let bytes = self.bytes;
-        let mut lines = bytes.split(|&b| b == b'\n').peekable();
+        let mut rest = self.bytes;
         let mut number = 0;
-        while let Some(raw) = lines.next() {
-            if raw.is_empty() && lines.peek().is_none() {
-                break; // the final newline
-            }
+        while !rest.is_empty() {
+            let (raw, next) = match memchr::memchr(b'\n', rest) {
+                Some(end) => (&rest[..end], &rest[end + 1..]),
+                None => (rest, &rest[rest.len()..]),
+            };
+            rest = next;
             number += 1;
             self.report.lines = number;
             self.line(raw).map_err(|error| G2oError::Line {
@@ -197,7 +202,7 @@ impl<'a> Reader<'a> {
         self.finish()
     }
 
-    fn line(&mut self, raw: &[u8]) -> Result<(), LineError> {
+    fn line(&mut self, raw: &'a [u8]) -> Result<(), LineError> {
         let text = std::str::from_utf8(raw).map_err(|_| LineError::NotUtf8)?;
         let mut tokens = text.split_ascii_whitespace();
         let Some(tag) = tokens.next() else {
@@ -206,17 +211,24 @@ impl<'a> Reader<'a> {
         if tag.starts_with('#') {
             return Ok(());
         }
-        let fields = Fields {
-            tag,
-            items: tokens.collect(),
-        };
-        let line = self.report.lines;
+        let mut items = std::mem::take(&mut self.items);
+        items.clear();
+        items.extend(tokens);
+        let fields = Fields { tag, items };
+        let result = self.record(&fields);
+        self.items = fields.items;
+        result
+    }
+
+    /// Adds the record of a line with a tag.
+    fn record(&mut self, fields: &Fields<'a>) -> Result<(), LineError> {
+        let (tag, line) = (fields.tag, self.report.lines);
         let used = match tag {
-            tags::VERTEX_SE2 => self.vertex::<SE2, 3>(&fields)?,
-            tags::VERTEX_XY => self.vertex::<Vector2<f64>, 2>(&fields)?,
+            tags::VERTEX_SE2 => self.vertex::<SE2, 3>(fields)?,
+            tags::VERTEX_XY => self.vertex::<Vector2<f64>, 2>(fields)?,
             tags::VERTEX_SE3_QUAT => {
                 fields.need(8)?;
-                let p = quaternion_params(&fields, 1)?;
+                let p = quaternion_params(fields, 1)?;
                 self.add_vertex(fields.id(0)?, SE3::from_params(&p))?;
                 8
             }
@@ -224,14 +236,14 @@ impl<'a> Reader<'a> {
                 fields.need(11)?;
                 let z = fields.numbers::<3>(2)?;
                 let edge = EdgeSE2::new(SE2::new(z[0], z[1], z[2]));
-                self.binary(&fields, line, edge, fields.information::<3>(5)?)?;
+                self.binary(fields, line, edge, fields.information::<3>(5)?)?;
                 11
             }
             tags::EDGE_SE2_XY => {
                 fields.need(7)?;
                 let z = fields.numbers::<2>(2)?;
                 let edge = EdgeSE2XY::new(Vector2::new(z[0], z[1]));
-                self.binary(&fields, line, edge, fields.information::<2>(4)?)?;
+                self.binary(fields, line, edge, fields.information::<2>(4)?)?;
                 7
             }
             tags::LANDMARK2 => {
@@ -255,15 +267,15 @@ impl<'a> Reader<'a> {
                     self.graph.add_unary_edge(
                         id,
                         EdgePriorSE2::new(SE2::new(z[0], z[1], z[2])),
-                        info,
+                        *info.matrix(),
                     )?;
                 }
                 10
             }
             tags::EDGE_SE3_QUAT => {
                 fields.need(30)?;
-                let z = SE3::from_params(&quaternion_params(&fields, 2)?);
-                self.binary(&fields, line, EdgeSE3::new(z), fields.information::<6>(9)?)?;
+                let z = SE3::from_params(&quaternion_params(fields, 2)?);
+                self.binary(fields, line, EdgeSE3::new(z), fields.information::<6>(9)?)?;
                 30
             }
             tags::FIX => {
@@ -281,7 +293,12 @@ impl<'a> Reader<'a> {
         if fields.items.len() > used {
             self.report.extra_fields += 1;
         }
-        *self.report.records.entry(tag.to_string()).or_default() += 1;
+        match self.report.records.get_mut(tag) {
+            Some(count) => *count += 1,
+            None => {
+                self.report.records.insert(tag.to_string(), 1);
+            }
+        }
         Ok(())
     }
 
@@ -328,14 +345,16 @@ impl<'a> Reader<'a> {
         &mut self,
         line: usize,
         m: SMatrix<f64, E, E>,
-    ) -> Result<Option<SMatrix<f64, E, E>>, LineError> {
-        match check_information(&m) {
-            Ok(()) => Ok(Some(m)),
+    ) -> Result<Option<PositiveDefinite<E>>, LineError> {
+        match PositiveDefinite::new(m) {
+            Ok(checked) => Ok(Some(checked)),
             Err(InformationIssue::NotPositiveDefinite { .. })
                 if self.options.repair_information =>
             {
                 self.report.repaired_information.push(line);
-                Ok(Some(nearest_positive_definite(&m)))
+                PositiveDefinite::new(nearest_positive_definite(&m))
+                    .map(Some)
+                    .map_err(LineError::Information)
             }
             Err(InformationIssue::NotPositiveDefinite { .. }) => {
                 self.indefinite.push(line);
@@ -359,7 +378,7 @@ impl<'a> Reader<'a> {
         self.ensure_vertex::<T::V1, D1>(i, self.create_vertices)?;
         self.ensure_vertex::<T::V2, D2>(j, self.create_vertices)?;
         if let Some(info) = self.checked_information(line, information)? {
-            self.graph.add_edge(i, j, edge, info)?;
+            self.graph.add_checked_edge(i, j, edge, info)?;
         }
         Ok(())
     }
@@ -385,7 +404,7 @@ impl<'a> Reader<'a> {
                     self.ensure_vertex::<SE2, 3>(lm.pose, self.create_vertices)?;
                     if let Some(info) = self.checked_information(lm.line, lm.information)? {
                         self.graph
-                            .add_edge(lm.pose, id, EdgeSE2XY::new(lm.z), info)?;
+                            .add_checked_edge(lm.pose, id, EdgeSE2XY::new(lm.z), info)?;
                     }
                     Ok(())
                 })();

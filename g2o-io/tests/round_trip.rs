@@ -92,3 +92,31 @@ fn comments_blank_lines_tabs_and_crlf() {
     assert_eq!((g.num_vertices(), g.num_edges(), r.lines), (2, 1, 6));
     round_trip(text);
 }
+
+/// The last line counts with or without a final newline, and every record
+/// is counted under its tag.
+#[test]
+fn last_line_without_a_newline_and_record_counts() {
+    let text = "VERTEX_SE2 0 0 0 0\nVERTEX_SE2 1 1 0 0\n\nEDGE_SE2 0 1 1 0 0 1 0 0 1 0 1";
+    for text in [text.to_string(), format!("{text}\n")] {
+        let (g, r) = read_bytes(text.as_bytes(), &ReadOptions::default()).unwrap();
+        assert_eq!((g.num_vertices(), g.num_edges(), r.lines), (2, 1, 4));
+        let counts: Vec<(&str, usize)> = r.records.iter().map(|(k, &v)| (k.as_str(), v)).collect();
+        assert_eq!(counts, [("EDGE_SE2", 1), ("VERTEX_SE2", 2)]);
+    }
+}
+
+/// A file takes its vertices from its edges only if no line starts (after
+/// blanks) with a VERTEX_ tag: VERTEX_ in a comment or inside another
+/// word does not count, an indented VERTEX_ line does.
+#[test]
+fn vertices_from_edges_only_without_vertex_lines() {
+    let edge = "EDGE_SE2 0 1 1 0 0 1 0 0 1 0 1\n";
+    for prefix in ["", "# VERTEX_SE2 5 0 0 0\n", "PARAMS_VERTEX_X 1\n"] {
+        let text = format!("{prefix}{edge}");
+        let (g, _) = read_bytes(text.as_bytes(), &ReadOptions::default()).unwrap();
+        assert_eq!(g.num_vertices(), 2, "{text:?}");
+    }
+    let text = format!(" \tVERTEX_SE2 0 0 0 0\n{edge}");
+    assert!(read_bytes(text.as_bytes(), &ReadOptions::default()).is_err());
+}
