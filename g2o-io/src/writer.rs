@@ -2,17 +2,25 @@
 
 use crate::error::G2oError;
 use crate::tags;
-use cairn_core::{EdgePriorSE2, EdgeSE2, EdgeSE2XY, EdgeSE3, EdgeView, Graph, SE2, SE3, Variable};
+use cairn_core::{
+    EdgePriorSE2, EdgeSE2, EdgeSE2XY, EdgeSE3, EdgeView, Graph, SE2, SE3, Variable, VertexId,
+};
 use nalgebra::Vector2;
 use std::any::TypeId;
-use std::fmt::Write as _;
 use std::io::Write;
 use std::path::Path;
 
-/// Appends ` v` in the shortest form that reads back to the same `f64`.
+/// Appends ` v` in the shortest form that reads back to the same `f64`
+/// (exponents for very large or small values, as `1e+16` and `1e-7`).
 fn num(out: &mut String, v: f64) {
-    // `{:?}` is exact and switches to exponents for very large or small values.
-    let _ = write!(out, " {v:?}");
+    out.push(' ');
+    out.push_str(zmij::Buffer::new().format(v));
+}
+
+/// Appends ` id`.
+fn id(out: &mut String, id: VertexId) {
+    out.push(' ');
+    out.push_str(itoa::Buffer::new().format(id));
 }
 
 fn vertex_tag(type_id: TypeId) -> Option<&'static str> {
@@ -27,28 +35,31 @@ fn vertex_tag(type_id: TypeId) -> Option<&'static str> {
     }
 }
 
-/// The tag and measurement parameters of a built-in edge.
-fn edge_record(e: &EdgeView) -> Option<(&'static str, Vec<f64>)> {
+/// The tag and measurement parameters (the first `len` of at most 7) of a
+/// built-in edge.
+fn edge_record(e: &EdgeView) -> Option<(&'static str, [f64; 7], usize)> {
     let any = e.edge();
+    let mut p = [0.0; 7];
+    let mut from = |tag, params: &[f64]| {
+        p[..params.len()].copy_from_slice(params);
+        Some((tag, p, params.len()))
+    };
     if let Some(edge) = any.downcast_ref::<EdgeSE2>() {
-        return Some((
-            tags::EDGE_SE2,
-            edge.measurement().to_vector().as_slice().to_vec(),
-        ));
+        return from(tags::EDGE_SE2, edge.measurement().to_vector().as_slice());
     }
     if let Some(edge) = any.downcast_ref::<EdgeSE2XY>() {
-        return Some((tags::EDGE_SE2_XY, edge.measurement().as_slice().to_vec()));
+        return from(tags::EDGE_SE2_XY, edge.measurement().as_slice());
     }
     if let Some(edge) = any.downcast_ref::<EdgePriorSE2>() {
-        return Some((
+        return from(
             tags::EDGE_PRIOR_SE2,
-            edge.measurement().to_vector().as_slice().to_vec(),
-        ));
+            edge.measurement().to_vector().as_slice(),
+        );
     }
     if let Some(edge) = any.downcast_ref::<EdgeSE3>() {
-        let mut p = vec![0.0; 7];
-        edge.measurement().write_params(&mut p);
-        return Some((tags::EDGE_SE3_QUAT, p));
+        let mut q = [0.0; 7];
+        edge.measurement().write_params(&mut q);
+        return from(tags::EDGE_SE3_QUAT, &q);
     }
     None
 }
@@ -60,22 +71,25 @@ pub fn to_string(graph: &Graph) -> Result<String, G2oError> {
     let mut out = String::with_capacity(64 * (graph.num_vertices() + 2 * graph.num_edges()));
     for v in graph.vertices() {
         let tag = vertex_tag(v.kind.type_id).ok_or(G2oError::Unwritable(v.kind.name))?;
-        let _ = write!(out, "{tag} {}", v.id);
+        out.push_str(tag);
+        id(&mut out, v.id);
         for &p in v.params {
             num(&mut out, p);
         }
         out.push('\n');
         if v.fixed {
-            let _ = writeln!(out, "{} {}", tags::FIX, v.id);
+            out.push_str(tags::FIX);
+            id(&mut out, v.id);
+            out.push('\n');
         }
     }
     for e in graph.edges() {
-        let (tag, measurement) = edge_record(&e).ok_or(G2oError::Unwritable(e.name()))?;
+        let (tag, measurement, len) = edge_record(&e).ok_or(G2oError::Unwritable(e.name()))?;
         out.push_str(tag);
         for &v in e.vertices() {
-            let _ = write!(out, " {}", graph.vertex(v).id);
+            id(&mut out, graph.vertex(v).id);
         }
-        for m in measurement {
+        for &m in &measurement[..len] {
             num(&mut out, m);
         }
         let n = e.error_dim();

@@ -120,3 +120,31 @@ fn vertices_from_edges_only_without_vertex_lines() {
     let text = format!(" \tVERTEX_SE2 0 0 0 0\n{edge}");
     assert!(read_bytes(text.as_bytes(), &ReadOptions::default()).is_err());
 }
+
+proptest::proptest! {
+    /// Every finite `f64` is written in a form that reads back to the same
+    /// bits, whatever its exponent (subnormals, ±0, 1e±300, 1e16, 1e-5).
+    #[test]
+    fn numbers_read_back_to_the_same_bits(bits in proptest::collection::vec(proptest::num::u64::ANY, 2..40)) {
+        let values: Vec<f64> = bits
+            .iter()
+            .map(|&b| f64::from_bits(b))
+            .filter(|v| v.is_finite())
+            .chain([1e16, -1e-5, 1.5e-5, -0.0, 5e-324, 123456789012345680.0])
+            .collect();
+        let text: String = values
+            .chunks(2)
+            .enumerate()
+            .filter(|(_, xy)| xy.len() == 2)
+            .map(|(k, xy)| format!("VERTEX_XY {k} {:e} {:e}\n", xy[0], xy[1]))
+            .collect();
+        let (graph, _) = read_bytes(text.as_bytes(), &ReadOptions::default()).unwrap();
+        let written = to_string(&graph).unwrap();
+        let (again, _) = read_bytes(written.as_bytes(), &ReadOptions::default()).unwrap();
+        let bits_of = |g: &cairn_core::Graph| -> Vec<u64> {
+            g.values().params().iter().map(|v| v.to_bits()).collect()
+        };
+        proptest::prop_assert_eq!(bits_of(&graph), bits_of(&again));
+        proptest::prop_assert_eq!(bits_of(&graph).len(), 2 * (values.len() / 2));
+    }
+}
