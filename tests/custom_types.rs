@@ -148,3 +148,37 @@ fn type_mismatches_are_errors() {
             .contains("OFFSET")
     );
 }
+
+/// A state of 20 numbers (a calibration vector, say): more parameters than
+/// `Graph::add_vertex` checks on the stack.
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+struct Calibration([f64; 20]);
+
+impl Variable<20> for Calibration {
+    const PARAMS: usize = 20;
+    const NAME: &'static str = "CALIBRATION";
+    fn from_params(p: &[f64]) -> Self {
+        Calibration(std::array::from_fn(|k| p[k]))
+    }
+    fn write_params(&self, out: &mut [f64]) {
+        out.copy_from_slice(&self.0);
+    }
+    fn oplus(&self, d: &SVector<f64, 20>) -> Self {
+        Calibration(std::array::from_fn(|k| self.0[k] + d[k]))
+    }
+}
+
+#[test]
+fn variables_with_many_parameters_are_kept_and_checked() {
+    let mut g = Graph::new();
+    let c = Calibration(std::array::from_fn(|k| k as f64 * 0.5 - 3.0));
+    g.add_vertex(7, c).unwrap();
+    assert_eq!(g.value::<Calibration, 20>(7).unwrap(), c);
+    let mut bad = c;
+    bad.0[19] = f64::NAN;
+    assert_eq!(
+        g.add_vertex(8, bad),
+        Err(cairn::core::GraphError::NonFiniteValue(8))
+    );
+    assert_eq!(g.num_vertices(), 1);
+}

@@ -7,8 +7,8 @@ use crate::kernel::RobustKernel;
 use crate::values::Values;
 use crate::variable::Variable;
 use nalgebra::{SMatrix, SVector};
+use rustc_hash::FxHashMap;
 use std::any::{Any, TypeId};
-use std::collections::HashMap;
 
 /// A vertex id as written in g2o files.
 pub type VertexId = i64;
@@ -174,9 +174,13 @@ pub struct Graph {
     values: Values,
     vertices: Vec<VertexRecord>,
     kinds: Vec<VariableKind>,
-    index: HashMap<VertexId, usize>,
+    /// Each id's vertex index. Fx hashing (rustc's) is several times faster
+    /// than the default on integer keys; it does not resist ids crafted to
+    /// collide, which would slow a load down, not change its result.
+    index: FxHashMap<VertexId, usize>,
     groups: Vec<Box<dyn FactorGroup>>,
-    group_of: HashMap<TypeId, usize>,
+    /// Each group's edge type: a handful, searched in order.
+    group_types: Vec<TypeId>,
     edge_order: Vec<(u32, u32)>,
 }
 
@@ -195,8 +199,16 @@ impl Graph {
         if self.index.contains_key(&id) {
             return Err(GraphError::DuplicateVertex(id));
         }
-        let mut p = vec![0.0; V::PARAMS];
-        value.write_params(&mut p);
+        // The parameters on the stack unless a custom variable has many.
+        let (mut stack, mut heap) = ([0.0; 16], Vec::new());
+        let p = match V::PARAMS <= stack.len() {
+            true => &mut stack[..V::PARAMS],
+            false => {
+                heap.resize(V::PARAMS, 0.0);
+                &mut heap[..]
+            }
+        };
+        value.write_params(p);
         if p.iter().any(|v| !v.is_finite()) {
             return Err(GraphError::NonFiniteValue(id));
         }
@@ -391,10 +403,15 @@ impl Graph {
     }
 
     fn group_index<T: 'static>(&mut self, make: impl FnOnce() -> Box<dyn FactorGroup>) -> usize {
-        *self.group_of.entry(TypeId::of::<T>()).or_insert_with(|| {
-            self.groups.push(make());
-            self.groups.len() - 1
-        })
+        let type_id = TypeId::of::<T>();
+        match self.group_types.iter().position(|&t| t == type_id) {
+            Some(g) => g,
+            None => {
+                self.groups.push(make());
+                self.group_types.push(type_id);
+                self.groups.len() - 1
+            }
+        }
     }
 
     fn record_edge(&mut self, group: usize, k: usize) -> usize {
