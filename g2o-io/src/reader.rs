@@ -131,6 +131,16 @@ impl<'a> Fields<'a> {
     }
 }
 
+/// Adds one to `tag`'s count, allocating its name only the first time.
+fn count(counts: &mut BTreeMap<String, usize>, tag: &str) {
+    match counts.get_mut(tag) {
+        Some(n) => *n += 1,
+        None => {
+            counts.insert(tag.to_string(), 1);
+        }
+    }
+}
+
 fn quaternion_params(f: &Fields, first: usize) -> Result<[f64; 7], LineError> {
     let p = f.numbers::<7>(first)?;
     if p[3..].iter().all(|&q| q == 0.0) {
@@ -286,19 +296,14 @@ impl<'a> Reader<'a> {
                 fields.items.len()
             }
             other => {
-                *self.report.unknown.entry(other.to_string()).or_default() += 1;
+                count(&mut self.report.unknown, other);
                 return Ok(());
             }
         };
         if fields.items.len() > used {
             self.report.extra_fields += 1;
         }
-        match self.report.records.get_mut(tag) {
-            Some(count) => *count += 1,
-            None => {
-                self.report.records.insert(tag.to_string(), 1);
-            }
-        }
+        count(&mut self.report.records, tag);
         Ok(())
     }
 

@@ -218,3 +218,12 @@ fn unknown_tags_and_extra_fields_are_counted_not_fatal() {
     assert_eq!(r.unknown_lines(), 2);
     assert_eq!(r.extra_fields, 1);
 }
+
+#[test]
+fn unknown_tags_are_counted_by_tag() {
+    let text = format!("{TWO}VERTEX_TRACKXYZ 5 1 2 3\nPARAMS_X 1\nVERTEX_TRACKXYZ 6 1 2 3\n");
+    let (_, r) = read_bytes(text.as_bytes(), &ReadOptions::default()).unwrap();
+    let counts: Vec<(&str, usize)> = r.unknown.iter().map(|(k, &v)| (k.as_str(), v)).collect();
+    assert_eq!(counts, [("PARAMS_X", 1), ("VERTEX_TRACKXYZ", 2)]);
+    assert_eq!(r.unknown_lines(), 3);
+}
