@@ -199,41 +199,6 @@ impl HessianStructure {
             }
         };
 
-        // Where every edge's blocks and gradient segments add: (block of H,
-        // transposed) for each block, u32::MAX if a vertex is fixed.
-        let mut targets: Vec<(u32, bool)> = Vec::new();
-        let mut column_targets = Vec::new();
-        let mut group_targets = Vec::new();
-        let (mut edges, mut buffer_len) = (0, 0);
-        for g in graph.factor_groups() {
-            group_targets.push([targets.len(), column_targets.len(), edges]);
-            edges += g.len();
-            buffer_len += g.len() * layout::stride(g.vertex_dims());
-            for i in 0..g.len() {
-                let vs = g.vertices(i);
-                for (p, &vp) in vs.iter().enumerate() {
-                    let bp = block_of[vp];
-                    for &vq in &vs[p..] {
-                        let bq = block_of[vq];
-                        targets.push(match bp == u32::MAX || bq == u32::MAX {
-                            true => (u32::MAX, false),
-                            false => (block_index(bp.min(bq), bp.max(bq)) as u32, bp > bq),
-                        });
-                    }
-                    column_targets.push(match bp {
-                        u32::MAX => u32::MAX,
-                        b => column_of_block[b as usize] as u32,
-                    });
-                }
-            }
-        }
-        // The parallel assembly addresses the buffer with u32 offsets.
-        if buffer_len >= u32::MAX as usize {
-            return Err(SolveError::TooLarge {
-                entries: buffer_len,
-            });
-        }
-
         // The scalar pattern: column by column; within a scalar column, block
         // row by block row (only the upper triangle of the diagonal block).
         let nnz: usize = (0..blocks)
@@ -291,16 +256,44 @@ impl HessianStructure {
                 };
             }
         }
-        let block_targets = targets
-            .into_iter()
-            .map(|(k, transposed)| match k {
-                u32::MAX => BlockTarget::NONE,
-                k => BlockTarget {
-                    transposed,
-                    ..block_first[k as usize]
-                },
-            })
-            .collect();
+        // Where every edge's blocks and gradient segments add: each block's
+        // target in H (transposed for a block below the diagonal), none if
+        // a vertex is fixed.
+        let mut block_targets = Vec::new();
+        let mut column_targets = Vec::new();
+        let mut group_targets = Vec::new();
+        let (mut edges, mut buffer_len) = (0, 0);
+        for g in graph.factor_groups() {
+            group_targets.push([block_targets.len(), column_targets.len(), edges]);
+            edges += g.len();
+            buffer_len += g.len() * layout::stride(g.vertex_dims());
+            for i in 0..g.len() {
+                let vs = g.vertices(i);
+                for (p, &vp) in vs.iter().enumerate() {
+                    let bp = block_of[vp];
+                    for &vq in &vs[p..] {
+                        let bq = block_of[vq];
+                        block_targets.push(match bp == u32::MAX || bq == u32::MAX {
+                            true => BlockTarget::NONE,
+                            false => BlockTarget {
+                                transposed: bp > bq,
+                                ..block_first[block_index(bp.min(bq), bp.max(bq))]
+                            },
+                        });
+                    }
+                    column_targets.push(match bp {
+                        u32::MAX => u32::MAX,
+                        b => column_of_block[b as usize] as u32,
+                    });
+                }
+            }
+        }
+        // The parallel assembly addresses the buffer with u32 offsets.
+        if buffer_len >= u32::MAX as usize {
+            return Err(SolveError::TooLarge {
+                entries: buffer_len,
+            });
+        }
 
         let pattern = SymbolicSparseColMat::new_checked(dim, dim, col_ptr, None, row_idx);
         let block_pattern = SymbolicSparseColMat::new_checked(
