@@ -2,7 +2,7 @@
 
 use crate::edge::{BinaryEdge, UnaryEdge};
 use crate::factor::{BinaryGroup, FactorGroup, UnaryGroup};
-use crate::information::{InformationIssue, PositiveDefinite, check_information};
+use crate::information::{InformationIssue, PositiveDefinite};
 use crate::kernel::RobustKernel;
 use crate::values::Values;
 use crate::variable::Variable;
@@ -385,21 +385,61 @@ impl Graph {
     where
         T: UnaryEdge<E, D>,
     {
+        let a = self.unary_end::<T, E, D>(id)?;
+        let information =
+            PositiveDefinite::new(information).map_err(|issue| GraphError::BadInformation {
+                edge: T::NAME,
+                vertices: vec![id],
+                issue,
+            })?;
+        Ok(self.push_unary(a, edge, information))
+    }
+
+    /// [`Graph::add_unary_edge`] with an information matrix checked already.
+    pub fn add_checked_unary_edge<T, const E: usize, const D: usize>(
+        &mut self,
+        id: VertexId,
+        edge: T,
+        information: PositiveDefinite<E>,
+    ) -> Result<usize, GraphError>
+    where
+        T: UnaryEdge<E, D>,
+    {
+        let a = self.unary_end::<T, E, D>(id)?;
+        Ok(self.push_unary(a, edge, information))
+    }
+
+    /// The index of a unary edge's vertex, checked: it exists and has the
+    /// edge's vertex type.
+    fn unary_end<T, const E: usize, const D: usize>(
+        &self,
+        id: VertexId,
+    ) -> Result<usize, GraphError>
+    where
+        T: UnaryEdge<E, D>,
+    {
         let a = self.checked_index(id)?;
         self.check_type::<T::V>(a, T::NAME, <T::V as Variable<D>>::NAME)?;
-        check_information(&information).map_err(|issue| GraphError::BadInformation {
-            edge: T::NAME,
-            vertices: vec![id],
-            issue,
-        })?;
+        Ok(a)
+    }
+
+    fn push_unary<T, const E: usize, const D: usize>(
+        &mut self,
+        a: usize,
+        edge: T,
+        information: PositiveDefinite<E>,
+    ) -> usize
+    where
+        T: UnaryEdge<E, D>,
+    {
         let g = self.group_index::<T>(|| Box::new(UnaryGroup::<T, E, D>::new()));
         let group = self.groups[g]
             .as_any_mut()
             .downcast_mut::<UnaryGroup<T, E, D>>();
         let k = group
-            .map(|grp| grp.push(edge, a, information))
+            .map(|grp| grp.push(edge, a, *information.matrix()))
             .unwrap_or_else(|| unreachable!());
-        Ok(self.record_edge(g, k))
+        self.record_edge(g, k)
     }
 
     fn group_index<T: 'static>(&mut self, make: impl FnOnce() -> Box<dyn FactorGroup>) -> usize {

@@ -121,3 +121,32 @@ fn checked_edges_are_added_as_edges_are() {
     assert!(g.chi2() > 0.0);
     assert_eq!(g.chi2().to_bits(), same.chi2().to_bits());
 }
+
+/// A prior with checked information is refused for the same reasons as any
+/// other (unknown vertex, wrong type), and added alike.
+#[test]
+fn checked_priors_are_added_as_priors_are() {
+    use cairn_core::{EdgePriorSE2, GraphError, PositiveDefinite};
+    use nalgebra::Vector2;
+    let build = || {
+        let mut g = Graph::new();
+        g.add_vertex(0, SE2::new(0.5, -0.2, 0.1)).unwrap();
+        g.add_vertex(1, Vector2::new(2.0, 1.0)).unwrap();
+        g
+    };
+    let prior = EdgePriorSE2::new(SE2::new(0.0, 0.0, 0.0));
+    let info = Matrix3::new(4.0, 0.5, 0.0, 0.5, 3.0, 0.1, 0.0, 0.1, 9.0);
+    let checked = PositiveDefinite::new(info).unwrap();
+    let refused = |e: Result<usize, GraphError>| e.map_err(|e| e.to_string()).unwrap_err();
+    let (mut g, mut same) = (build(), build());
+    for id in [9, 1] {
+        assert_eq!(
+            refused(g.add_checked_unary_edge(id, prior.clone(), checked)),
+            refused(same.add_unary_edge(id, prior.clone(), info))
+        );
+    }
+    assert_eq!(g.add_checked_unary_edge(0, prior.clone(), checked), Ok(0));
+    assert_eq!(same.add_unary_edge(0, prior, info), Ok(0));
+    assert!(g.chi2() > 0.0);
+    assert_eq!(g.chi2().to_bits(), same.chi2().to_bits());
+}

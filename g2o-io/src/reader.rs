@@ -274,10 +274,10 @@ impl<'a> Reader<'a> {
                 let id = fields.id(0)?;
                 self.ensure_vertex::<SE2, 3>(id, self.create_vertices)?;
                 if let Some(info) = self.checked_information(line, fields.information::<3>(4)?)? {
-                    self.graph.add_unary_edge(
+                    self.graph.add_checked_unary_edge(
                         id,
                         EdgePriorSE2::new(SE2::new(z[0], z[1], z[2])),
-                        *info.matrix(),
+                        info,
                     )?;
                 }
                 10
