@@ -44,7 +44,8 @@ impl Assembly {
     /// the structure was built for; its buffer fits u32 offsets).
     pub fn new(structure: &HessianStructure, graph: &Graph) -> Self {
         let s = structure;
-        let (block_col_ptr, block_row_idx) = (s.block_pattern.col_ptr(), s.block_pattern.row_idx());
+        let layout = &s.layout;
+        let (block_col_ptr, block_row_idx) = (layout.blocks().col_ptr(), layout.blocks().row_idx());
         let block_index = |r: u32, c: u32| -> usize {
             let range = block_col_ptr[c as usize]..block_col_ptr[c as usize + 1];
             let r = r as usize;
@@ -86,15 +87,15 @@ impl Assembly {
         }
         let as_u32 = |v: Vec<usize>| v.into_iter().map(|x| x as u32).collect::<Vec<u32>>();
         let (h_start, h_sources) = group_by_key(block_row_idx.len(), &h_sources);
-        let (g_start, g_sources) = group_by_key(s.block_dims.len(), &g_sources);
+        let blocks = layout.dims().len();
+        let (g_start, g_sources) = group_by_key(blocks, &g_sources);
 
         // Work items of at least CHUNK_VALUES entries, whole block columns.
-        let col_ptr = s.pattern.col_ptr();
-        let blocks = s.block_dims.len();
+        let (col_ptr, block_column) = (layout.col_ptr(), layout.block_column());
         let mut chunks = vec![0];
         for c in 0..blocks {
-            let chunk_begin = col_ptr[s.block_column[*chunks.last().unwrap_or(&0)]];
-            if col_ptr[s.block_column[c + 1]] - chunk_begin >= CHUNK_VALUES {
+            let chunk_begin = col_ptr[block_column[*chunks.last().unwrap_or(&0)]];
+            if col_ptr[block_column[c + 1]] - chunk_begin >= CHUNK_VALUES {
                 chunks.push(c + 1);
             }
         }
@@ -138,9 +139,8 @@ impl Assembly {
     ) {
         if chunks.len() > 2 {
             let mid = chunks.len() / 2;
-            let col_ptr = s.pattern.col_ptr();
-            let first = s.block_column[chunks[0]];
-            let split = s.block_column[chunks[mid]];
+            let (col_ptr, block_column) = (s.layout.col_ptr(), s.layout.block_column());
+            let (first, split) = (block_column[chunks[0]], block_column[chunks[mid]]);
             let (v1, v2) = values.split_at_mut(col_ptr[split] - col_ptr[first]);
             let (g1, g2) = gradient.split_at_mut(split - first);
             rayon::join(
@@ -161,22 +161,24 @@ impl Assembly {
         values: &mut [f64],
         gradient: &mut [f64],
     ) {
-        let col_ptr = s.pattern.col_ptr();
-        let (block_col_ptr, block_row_idx) = (s.block_pattern.col_ptr(), s.block_pattern.row_idx());
-        let first = s.block_column[range.start];
+        let layout = &s.layout;
+        let (col_ptr, block_column, dims) =
+            (layout.col_ptr(), layout.block_column(), layout.dims());
+        let (block_col_ptr, block_row_idx) = (layout.blocks().col_ptr(), layout.blocks().row_idx());
+        let first = block_column[range.start];
         let base = col_ptr[first];
         // Entry by entry, each summing its sources in a register: the
         // sources' blocks are read from memory once and then from cache.
         for c in range {
-            let (cc, dc) = (s.block_column[c], s.block_dims[c]);
+            let (cc, dc) = (block_column[c], dims[c]);
             let blocks = block_col_ptr[c]..block_col_ptr[c + 1];
             for (k, &r) in blocks.clone().zip(&block_row_idx[blocks]) {
-                let dr = s.block_dims[r];
+                let dr = dims[r];
                 let sources = &self.hessian_sources
                     [self.hessian_start[k] as usize..self.hessian_start[k + 1] as usize];
                 for j in 0..dc {
                     let height = if r == c { j + 1 } else { dr };
-                    let at = col_ptr[cc + j] - base + s.row_offset[k] as usize;
+                    let at = col_ptr[cc + j] - base + layout.row_offset()[k] as usize;
                     for (i, v) in values[at..at + height].iter_mut().enumerate() {
                         // A transposed block is stored dc × dr: entry (i, j) is its (j, i).
                         let (straight, transposed) = (i + j * dr, j + i * dc);

@@ -28,6 +28,7 @@
 pub mod assembly;
 pub mod chordal;
 pub mod config;
+pub mod hessian_layout;
 pub mod initialization;
 pub mod linear;
 pub mod marginals;
@@ -44,6 +45,7 @@ pub use config::{
     Algorithm, Damping, DoglegConfig, IterationStats, LevenbergMarquardtConfig, PhaseTimes,
     SolverConfig, Summary, Termination,
 };
+pub use hessian_layout::HessianLayout;
 pub use initialization::{Initialization, optimize_from, spanning_tree_initialize};
 pub use linear::{
     Factorization, LinearSolverConfig, NotPositiveDefinite, Ordering, SparseCholesky,

@@ -6,6 +6,7 @@
 //! faer's own.
 
 use crate::SolveError;
+use crate::hessian_layout::HessianLayout;
 use crate::selected_inverse::{LowerFactor, SelectedInverse, Supernodes};
 use crate::simplicial::{SimplicialCholesky, SimplicialSymbolic};
 use crate::supernodal::{SupernodalCholesky, SupernodalSymbolic};
@@ -255,8 +256,10 @@ enum Factor {
     Faer(FaerCholesky),
 }
 
-/// faer's factor with its symbolic analysis and work space.
+/// faer's factor with H's scalar pattern, its symbolic analysis and work
+/// space.
 struct FaerCholesky {
+    pattern: SymbolicSparseColMat<usize>,
     symbolic: SymbolicCholesky<usize>,
     values: Vec<f64>,
     scratch: MemBuffer,
@@ -272,7 +275,8 @@ impl std::fmt::Debug for FaerCholesky {
 }
 
 impl FaerCholesky {
-    fn factorize(&mut self, h: SparseColMatRef<'_, usize, f64>) -> Result<(), NotPositiveDefinite> {
+    fn factorize(&mut self, values: &[f64]) -> Result<(), NotPositiveDefinite> {
+        let h = SparseColMatRef::new(self.pattern.as_ref(), values);
         let regularization = LltRegularization {
             dynamic_regularization_delta: 0.0,
             dynamic_regularization_epsilon: 0.0,
@@ -329,16 +333,13 @@ impl FaerCholesky {
 }
 
 impl SparseCholesky {
-    /// Symbolic analysis of H, given by its upper triangle `pattern` and the
-    /// upper triangle of its vertex blocks, `block_pattern`, with each
-    /// block's size in `block_dims`. Block orderings are the caller's to
-    /// apply (by numbering the blocks in `block_order`); only
-    /// [`Ordering::Amd`] is left to faer, whose factor it then is; under the
-    /// others the factor is Cairn's, analysed on the blocks.
+    /// Symbolic analysis of H, laid out by its vertex blocks in `layout`.
+    /// Block orderings are the caller's to apply (by numbering the blocks
+    /// in `block_order`); only [`Ordering::Amd`] is left to faer, whose
+    /// factor it then is; under the others the factor is Cairn's, analysed
+    /// on the blocks.
     pub fn analyze(
-        pattern: SymbolicSparseColMatRef<'_, usize>,
-        block_pattern: SymbolicSparseColMatRef<'_, usize>,
-        block_dims: &[usize],
+        layout: &HessianLayout,
         config: &LinearSolverConfig,
     ) -> Result<Self, SolveError> {
         let factor = if config.ordering == Ordering::Amd {
@@ -347,15 +348,15 @@ impl SparseCholesky {
                 Factorization::Simplicial => SupernodalThreshold::FORCE_SIMPLICIAL,
                 Factorization::Supernodal => SupernodalThreshold::FORCE_SUPERNODAL,
             };
-            Self::faer(pattern, SymmetricOrdering::Amd, threshold, config)?
+            Self::faer(layout.scalar_pattern(), threshold, config)?
         } else {
-            let blocks = SimplicialSymbolic::analyze(block_pattern, block_dims)?;
+            let blocks = SimplicialSymbolic::analyze(layout.blocks(), layout.dims())?;
             let simplicial = match config.factorization {
                 Factorization::Supernodal => false,
                 Factorization::Simplicial => true,
                 Factorization::Auto => simplicial_pays(&blocks),
             };
-            Self::blockwise(blocks, simplicial, pattern, par(config))?
+            Self::blockwise(blocks, simplicial, layout, par(config))?
         };
         Ok(Self {
             factor,
@@ -369,25 +370,25 @@ impl SparseCholesky {
     fn blockwise(
         blocks: SimplicialSymbolic,
         simplicial: bool,
-        pattern: SymbolicSparseColMatRef<'_, usize>,
+        layout: &HessianLayout,
         par: Par,
     ) -> Result<Factor, SolveError> {
         let dim = blocks.dim();
         if !simplicial || u32::try_from(dim).is_err() {
             let symbolic = SupernodalSymbolic::from_blocks(&blocks)?;
-            if let Some(factor) = SupernodalCholesky::new(symbolic, pattern, par) {
+            if let Some(factor) = SupernodalCholesky::new(symbolic, layout, par) {
                 return Ok(Factor::Supernodal(Box::new(factor)));
             }
         }
-        SimplicialCholesky::new(blocks)
+        SimplicialCholesky::new(blocks, layout)
             .map(Factor::Simplicial)
             .ok_or(SolveError::TooLarge { entries: dim })
     }
 
-    /// faer's symbolic analysis (under its scalar AMD) and work space.
+    /// faer's symbolic analysis of H's scalar `pattern` under its scalar
+    /// AMD, and work space.
     fn faer(
-        pattern: SymbolicSparseColMatRef<'_, usize>,
-        ordering: SymmetricOrdering<'_, usize>,
+        pattern: SymbolicSparseColMat<usize>,
         threshold: SupernodalThreshold,
         config: &LinearSolverConfig,
     ) -> Result<Factor, SolveError> {
@@ -395,8 +396,13 @@ impl SparseCholesky {
             supernodal_flop_ratio_threshold: threshold,
             ..Default::default()
         };
-        let symbolic = factorize_symbolic_cholesky(pattern, Side::Upper, ordering, params)
-            .map_err(|e| SolveError::Analysis(format!("{e:?}")))?;
+        let symbolic = factorize_symbolic_cholesky(
+            pattern.as_ref(),
+            Side::Upper,
+            SymmetricOrdering::Amd,
+            params,
+        )
+        .map_err(|e| SolveError::Analysis(format!("{e:?}")))?;
         let par = par(config);
         let req = StackReq::any_of(&[
             symbolic.factorize_numeric_llt_scratch::<f64>(par, Default::default()),
@@ -405,6 +411,7 @@ impl SparseCholesky {
         let scratch = MemBuffer::try_new(req).map_err(|_| SolveError::OutOfMemory)?;
         Ok(Factor::Faer(FaerCholesky {
             values: vec![0.0; symbolic.len_val()],
+            pattern,
             symbolic,
             scratch,
             par,
@@ -429,13 +436,10 @@ impl SparseCholesky {
         }
     }
 
-    /// Numeric factorisation of H given by `pattern` and `values`.
-    pub fn factorize(
-        &mut self,
-        pattern: SymbolicSparseColMatRef<'_, usize>,
-        values: &[f64],
-    ) -> Result<(), NotPositiveDefinite> {
-        self.factorize_with(pattern, values, None).map(|_| ())
+    /// Numeric factorisation of H given by the `values` of its upper
+    /// triangle, in the layout the analysis was given.
+    pub fn factorize(&mut self, values: &[f64]) -> Result<(), NotPositiveDefinite> {
+        self.factorize_with(values, None).map(|_| ())
     }
 
     /// Factorises H and begins solving H x = `rhs` in place: for supernodal
@@ -445,11 +449,10 @@ impl SparseCholesky {
     /// an error `rhs` holds nothing useful.
     pub fn factorize_and_begin_solve(
         &mut self,
-        pattern: SymbolicSparseColMatRef<'_, usize>,
         values: &[f64],
         rhs: &mut [f64],
     ) -> Result<BegunSolve, NotPositiveDefinite> {
-        let forwarded = self.factorize_with(pattern, values, Some(rhs))?;
+        let forwarded = self.factorize_with(values, Some(rhs))?;
         Ok(BegunSolve { forwarded })
     }
 
@@ -466,19 +469,17 @@ impl SparseCholesky {
 
     fn factorize_with(
         &mut self,
-        pattern: SymbolicSparseColMatRef<'_, usize>,
         values: &[f64],
         forward: Option<&mut [f64]>,
     ) -> Result<bool, NotPositiveDefinite> {
         self.factored = false;
-        let h = SparseColMatRef::new(pattern, values);
         let forwarded = match &mut self.factor {
-            Factor::Simplicial(s) => s.factorize(h).map(|()| false)?,
+            Factor::Simplicial(s) => s.factorize(values).map(|()| false)?,
             Factor::Supernodal(s) => {
                 let forwarded = forward.is_some();
                 s.factorize(values, forward).map(|()| forwarded)?
             }
-            Factor::Faer(f) => f.factorize(h).map(|()| false)?,
+            Factor::Faer(f) => f.factorize(values).map(|()| false)?,
         };
         self.factored = true;
         Ok(forwarded)

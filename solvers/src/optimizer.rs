@@ -109,12 +109,7 @@ impl Optimizer {
         }
         let structure = HessianStructure::new(graph, &fixed, config.linear.ordering)?;
         let cholesky = if structure.dim > 0 {
-            Some(SparseCholesky::analyze(
-                structure.pattern.as_ref(),
-                structure.block_pattern.as_ref(),
-                &structure.block_dims,
-                &config.linear,
-            )?)
+            Some(SparseCholesky::analyze(&structure.layout, &config.linear)?)
         } else {
             None
         };
@@ -238,7 +233,7 @@ impl Optimizer {
     pub(crate) fn factorize_undamped(&mut self) -> Result<(), SolveError> {
         let cholesky = self.cholesky.as_mut().ok_or(SolveError::NothingToSolve)?;
         cholesky
-            .factorize(self.structure.pattern.as_ref(), &self.hessian)
+            .factorize(&self.hessian)
             .map_err(|e| SolveError::NotPositiveDefinite(e.pivot))
     }
 
@@ -357,11 +352,7 @@ impl Optimizer {
         for (s, g) in self.step.iter_mut().zip(&self.gradient) {
             *s = -g;
         }
-        let begun = cholesky.factorize_and_begin_solve(
-            self.structure.pattern.as_ref(),
-            &self.hessian,
-            &mut self.step,
-        );
+        let begun = cholesky.factorize_and_begin_solve(&self.hessian, &mut self.step);
         if lambda != 0.0 {
             for (k, &d) in self.structure.diagonal.iter().enumerate() {
                 self.hessian[d] = self.diagonal_backup[k];

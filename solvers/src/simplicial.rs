@@ -10,10 +10,11 @@
 //! column's diagonal first, then its rows ascending.
 
 use crate::SolveError;
+use crate::hessian_layout::HessianLayout;
 use crate::linear::NotPositiveDefinite;
 use crate::selected_inverse::LowerFactor;
 use crate::structure::group_by_key;
-use faer::sparse::{SparseColMatRef, SymbolicSparseColMatRef};
+use faer::sparse::SymbolicSparseColMatRef;
 
 /// The factor's structure from the block analysis, before any values.
 #[derive(Debug)]
@@ -174,12 +175,19 @@ pub struct SimplicialCholesky {
     work: Vec<f64>,
     /// Position in `values` of the last value written in each column.
     last: Vec<usize>,
+    /// H's layout: where each scalar column's values start, and for each
+    /// block column the block rows above its diagonal block
+    /// (`h_rows[h_block_ptr[c]..h_block_ptr[c + 1]]`).
+    h_col_ptr: Vec<usize>,
+    h_block_ptr: Vec<usize>,
+    h_rows: Vec<u32>,
 }
 
 impl SimplicialCholesky {
-    /// Takes the analysis and lays out the factor's rows. `None` if H's
-    /// dimension does not fit the `u32` row indices.
-    pub fn new(mut symbolic: SimplicialSymbolic) -> Option<Self> {
+    /// Takes the analysis of H (laid out by `layout`, the layout it was
+    /// made from) and lays out the factor's rows. `None` if H's dimension
+    /// does not fit the `u32` row indices.
+    pub fn new(mut symbolic: SimplicialSymbolic, layout: &HessianLayout) -> Option<Self> {
         let n = symbolic.dim();
         u32::try_from(n).ok()?;
         // The factorisation reads each row's columns in ascending order.
@@ -199,9 +207,22 @@ impl SimplicialCholesky {
                 }
             }
         }
+        let (block_ptr, block_rows) = (layout.blocks().col_ptr(), layout.blocks().row_idx());
+        let mut h_block_ptr = Vec::with_capacity(block_ptr.len());
+        let mut h_rows = Vec::with_capacity(block_rows.len());
+        h_block_ptr.push(0);
+        for c in 0..block_ptr.len() - 1 {
+            // The diagonal block comes last: all but it.
+            let above = &block_rows[block_ptr[c]..block_ptr[c + 1] - 1];
+            h_rows.extend(above.iter().map(|&r| r as u32));
+            h_block_ptr.push(h_rows.len());
+        }
         Some(Self {
             values: vec![0.0; row_idx.len()],
             row_idx,
+            h_col_ptr: layout.col_ptr().to_vec(),
+            h_block_ptr,
+            h_rows,
             inverse_diagonal: vec![0.0; n],
             // Up to 6 rows formed at once.
             work: vec![0.0; 6 * n],
@@ -215,17 +236,14 @@ impl SimplicialCholesky {
         self.values.len()
     }
 
-    /// Up-looking factorisation of `h` (the upper triangle, in the pattern
-    /// the analysis was given): the rows of L of each block solve a
+    /// Up-looking factorisation of H, given by the `values` of its upper
+    /// triangle in the layout the factor was made with: the rows of L of each block solve a
     /// triangular system with the rows above them, formed in `work` from the
     /// block's columns of H. A block's rows share their pattern, so they are
     /// formed together (up to 6), each value of L above them read once for
     /// all of them; the operations, and so the bits, are those of forming
     /// the rows one by one, as larger blocks are.
-    pub fn factorize(
-        &mut self,
-        h: SparseColMatRef<'_, usize, f64>,
-    ) -> Result<(), NotPositiveDefinite> {
+    pub fn factorize(&mut self, h: &[f64]) -> Result<(), NotPositiveDefinite> {
         let s = &self.symbolic;
         self.last.copy_from_slice(&s.col_ptr[..s.dim()]);
         for kb in 0..s.block_column.len() - 1 {
@@ -250,9 +268,13 @@ impl SimplicialCholesky {
     /// i of L is formed in `work[i·B + r]`.
     fn block_rows<const B: usize>(
         &mut self,
-        h: SparseColMatRef<'_, usize, f64>,
+        h: &[f64],
         kb: usize,
     ) -> Result<(), NotPositiveDefinite> {
+        let k = self.symbolic.block_column[kb];
+        for r in 0..B {
+            self.scatter_column(h, kb, k + r, B, r);
+        }
         let Self {
             symbolic: s,
             row_idx,
@@ -260,13 +282,8 @@ impl SimplicialCholesky {
             inverse_diagonal,
             work,
             last,
+            ..
         } = self;
-        let k = s.block_column[kb];
-        for r in 0..B {
-            for (&i, &v) in h.row_idx_of_col_raw(k + r).iter().zip(h.val_of_col(k + r)) {
-                work[i * B + r] += v;
-            }
-        }
         // The diagonal block, upper triangle: a[t][r] for row k + r, column k + t.
         let mut a = [[0.0; B]; B];
         for (t, at) in a.iter_mut().enumerate() {
@@ -325,18 +342,12 @@ impl SimplicialCholesky {
     }
 
     /// Rows of block `kb` one by one (blocks larger than 6).
-    fn rows_one_by_one(
-        &mut self,
-        h: SparseColMatRef<'_, usize, f64>,
-        kb: usize,
-    ) -> Result<(), NotPositiveDefinite> {
-        let s = &self.symbolic;
-        let block = s.rows(kb as u32);
-        let above = &s.row_blocks[s.row_start[kb]..s.row_start[kb + 1]];
+    fn rows_one_by_one(&mut self, h: &[f64], kb: usize) -> Result<(), NotPositiveDefinite> {
+        let block = self.symbolic.rows(kb as u32);
         for k in block.clone() {
-            for (&i, &v) in h.row_idx_of_col_raw(k).iter().zip(h.val_of_col(k)) {
-                self.work[i] += v;
-            }
+            self.scatter_column(h, kb, k, 1, 0);
+            let s = &self.symbolic;
+            let above = &s.row_blocks[s.row_start[kb]..s.row_start[kb + 1]];
             let mut d = std::mem::take(&mut self.work[k]);
             // Row k's columns ascending: the blocks above, then the
             // diagonal block's columns left of k.
@@ -361,6 +372,23 @@ impl SimplicialCholesky {
             self.inverse_diagonal[k] = diagonal.recip();
         }
         Ok(())
+    }
+
+    /// Adds H's column `j` (of block column `kb`) into `work`: its row i
+    /// into `work[i·stride + r]`. Its rows are those of the blocks above
+    /// the diagonal block, then the diagonal block's down to j.
+    fn scatter_column(&mut self, h: &[f64], kb: usize, j: usize, stride: usize, r: usize) {
+        let s = &self.symbolic;
+        let mut values = &h[self.h_col_ptr[j]..self.h_col_ptr[j + 1]];
+        let above = &self.h_rows[self.h_block_ptr[kb]..self.h_block_ptr[kb + 1]];
+        let rows = above.iter().map(|&b| s.rows(b));
+        for rows in rows.chain(std::iter::once(s.block_column[kb]..j + 1)) {
+            let (block, rest) = values.split_at(rows.len());
+            for (i, &v) in rows.zip(block) {
+                self.work[i * stride + r] += v;
+            }
+            values = rest;
+        }
     }
 
     /// The factor's columns, for selected inversion (already each column's

@@ -8,6 +8,7 @@
 //! number of threads.
 
 use crate::SolveError;
+use crate::hessian_layout::HessianLayout;
 use crate::linear::{Blocks, Ordering, block_order};
 use cairn_core::Graph;
 use cairn_core::layout::{self, BlockTarget, Scatter};
@@ -20,21 +21,13 @@ pub struct HessianStructure {
     pub column: Vec<Option<usize>>,
     /// Dimension of H.
     pub dim: usize,
-    /// Pattern of the upper triangle of H, columns sorted.
-    pub pattern: SymbolicSparseColMat<usize>,
+    /// Where H's entries sit among its values, by vertex block: one row and
+    /// column per free vertex, in column order.
+    pub layout: HessianLayout,
     /// Index into the values of each diagonal entry (for LM damping).
     pub diagonal: Vec<usize>,
-    /// Pattern of the upper block triangle: one row and column per free vertex,
-    /// in column order (for block-level fill-reducing orderings).
-    pub block_pattern: SymbolicSparseColMat<usize>,
-    /// Tangent dimension of each free vertex, in column order.
-    pub block_dims: Vec<usize>,
     /// Each vertex's block (its position in column order), `u32::MAX` if fixed.
     pub(crate) block_of: Vec<u32>,
-    /// First scalar column of each block column (and `dim` at the end).
-    pub(crate) block_column: Vec<usize>,
-    /// Offset of each block's first row within each of its scalar columns.
-    pub(crate) row_offset: Vec<u32>,
     /// Number of edges.
     edges: usize,
     /// Scalars the edges' blocks fill when linearised into a buffer.
@@ -147,8 +140,9 @@ impl HessianStructure {
     /// free vertices take their columns in the block order `ordering` asks
     /// for (block AMD or Schur; vertex order for the others).
     ///
-    /// Works block by block (one row and column per free vertex); only the
-    /// scalar pattern that the Cholesky needs is expanded.
+    /// Works block by block (one row and column per free vertex): H's
+    /// entries are addressed through its [`HessianLayout`], without scalar
+    /// row indices.
     pub fn new(graph: &Graph, fixed: &[bool], ordering: Ordering) -> Result<Self, SolveError> {
         let n = graph.num_vertices();
         let vdim: Vec<usize> = graph.vertices().map(|v| v.kind.dim).collect();
@@ -179,71 +173,39 @@ impl HessianStructure {
             free = order.iter().map(|&k| free[k]).collect();
         }
         let block_of = block_indices(n, &free);
-        let mut column_of_block = Vec::with_capacity(free.len() + 1);
-        let mut dim = 0;
-        for &v in &free {
-            column_of_block.push(dim);
-            dim += vdim[v];
-        }
-        column_of_block.push(dim);
+        let blocks = free.len();
+        let hessian = HessianLayout::new(
+            SymbolicSparseColMat::new_checked(
+                blocks,
+                blocks,
+                block_col_ptr,
+                None,
+                block_row_idx.into_iter().map(|r| r as usize).collect(),
+            ),
+            free.iter().map(|&v| vdim[v]).collect(),
+        )?;
+        let (block_col_ptr, block_row_idx) =
+            (hessian.blocks().col_ptr(), hessian.blocks().row_idx());
+        let (column_of_block, col_ptr) = (hessian.block_column(), hessian.col_ptr());
         let column: Vec<Option<usize>> = (0..n)
             .map(|v| (block_of[v] != u32::MAX).then(|| column_of_block[block_of[v] as usize]))
             .collect();
-        let blocks = free.len();
         // Block (r, c), r ≤ c: the diagonal block comes last in its column.
         let block_index = |r: u32, c: u32| -> usize {
             let range = block_col_ptr[c as usize]..block_col_ptr[c as usize + 1];
             match r == c {
                 true => range.end - 1,
-                false => range.start + block_row_idx[range].binary_search(&r).unwrap_or(0),
+                false => {
+                    range.start
+                        + block_row_idx[range]
+                            .binary_search(&(r as usize))
+                            .unwrap_or(0)
+                }
             }
         };
-
-        // The scalar pattern: column by column; within a scalar column, block
-        // row by block row (only the upper triangle of the diagonal block).
-        let nnz: usize = (0..blocks)
-            .map(|c| {
-                let d = vdim[free[c]];
-                let above: usize = block_row_idx[block_col_ptr[c]..block_col_ptr[c + 1] - 1]
-                    .iter()
-                    .map(|&r| vdim[free[r as usize]])
-                    .sum();
-                above * d + d * (d + 1) / 2
-            })
-            .sum();
-        if nnz >= u32::MAX as usize {
-            return Err(SolveError::TooLarge { entries: nnz });
-        }
-        let mut col_ptr = Vec::with_capacity(dim + 1);
-        let mut row_idx = Vec::with_capacity(nnz);
-        let mut row_offset = vec![0u32; block_row_idx.len()];
-        let mut diagonal = Vec::with_capacity(dim);
-        let mut above = Vec::new();
-        col_ptr.push(0usize);
-        for c in 0..blocks {
-            let dc = vdim[free[c]];
-            let mut offset = 0;
-            for k in block_col_ptr[c]..block_col_ptr[c + 1] {
-                row_offset[k] = offset as u32;
-                offset += vdim[free[block_row_idx[k] as usize]];
-            }
-            // The rows above the diagonal block (it comes last), the same
-            // in every scalar column of the block column.
-            above.clear();
-            for &r in &block_row_idx[block_col_ptr[c]..block_col_ptr[c + 1] - 1] {
-                let cr = column_of_block[r as usize];
-                above.extend(cr..cr + vdim[free[r as usize]]);
-            }
-            let cc = column_of_block[c];
-            for j in 0..dc {
-                row_idx.extend_from_slice(&above);
-                diagonal.push(row_idx.len() + j);
-                row_idx.extend(cc..=cc + j);
-                col_ptr.push(row_idx.len());
-            }
-        }
         // Each block of H's entry (0, 0), and the rows above the diagonal in
         // its block column (the diagonal block's offset: it comes last).
+        let row_offset = hessian.row_offset();
         let mut block_first = vec![BlockTarget::NONE; block_row_idx.len()];
         for c in 0..blocks {
             let column = col_ptr[column_of_block[c]] as u32;
@@ -295,24 +257,12 @@ impl HessianStructure {
             });
         }
 
-        let pattern = SymbolicSparseColMat::new_checked(dim, dim, col_ptr, None, row_idx);
-        let block_pattern = SymbolicSparseColMat::new_checked(
-            blocks,
-            blocks,
-            block_col_ptr,
-            None,
-            block_row_idx.into_iter().map(|r| r as usize).collect(),
-        );
         Ok(Self {
             column,
-            dim,
-            pattern,
-            block_pattern,
-            block_dims: free.iter().map(|&v| vdim[v]).collect(),
-            diagonal,
+            dim: hessian.dim(),
+            diagonal: hessian.diagonal(),
+            layout: hessian,
             block_of,
-            block_column: column_of_block,
-            row_offset,
             edges,
             buffer_len,
             block_targets,
@@ -323,7 +273,7 @@ impl HessianStructure {
 
     /// Number of stored entries of the upper triangle of H.
     pub fn nnz(&self) -> usize {
-        self.pattern.row_idx().len()
+        self.layout.nnz()
     }
 
     /// Linearises every edge on the calling thread, adding its blocks
@@ -362,21 +312,6 @@ impl HessianStructure {
     /// Number of edges (χ² terms).
     pub fn num_edges(&self) -> usize {
         self.edges
-    }
-
-    /// `out = H·x` for the symmetric H whose upper triangle is `values`.
-    pub fn hessian_times(&self, values: &[f64], x: &[f64], out: &mut [f64]) {
-        out.iter_mut().for_each(|o| *o = 0.0);
-        let (col_ptr, row_idx) = (self.pattern.col_ptr(), self.pattern.row_idx());
-        for j in 0..self.dim {
-            for k in col_ptr[j]..col_ptr[j + 1] {
-                let (i, v) = (row_idx[k], values[k]);
-                out[i] += v * x[j];
-                if i != j {
-                    out[j] += v * x[i];
-                }
-            }
-        }
     }
 }
 

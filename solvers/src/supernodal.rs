@@ -14,6 +14,7 @@
 //! substitution of a solve can run inside the factorisation, each supernode
 //! right after it is factorised, while its values are still in cache.
 
+use crate::hessian_layout::HessianLayout;
 use crate::linear::NotPositiveDefinite;
 use crate::structure::group_by_key;
 use faer::dyn_stack::{MemBuffer, MemStack};
@@ -23,7 +24,6 @@ use faer::linalg::cholesky::llt::factor::{
 use faer::linalg::matmul::triangular::{BlockStructure, matmul};
 use faer::linalg::triangular_solve::solve_lower_triangular_in_place;
 use faer::reborrow::*;
-use faer::sparse::SymbolicSparseColMatRef;
 use faer::{Accum, MatMut, MatRef, Par};
 use std::ops::Range;
 
@@ -61,56 +61,49 @@ fn position(r: usize, start: usize, width: usize, below: &[usize]) -> Option<usi
     }
 }
 
-/// For each entry of H's upper triangle `upper`, its position among L's
-/// values. H's entry (r, c), r ≤ c, is L's (c, r): column r, row c. H's
-/// rows in column c fall in runs, each in one supernode s, where row c's
-/// position p is the same in all of s's columns: the run's entries are at
-/// base + r·height. The columns of a vertex block have the same rows above
-/// the block, so each column after the block's first has its predecessor's
-/// runs, row c one position further down, and the diagonal run one row
-/// longer; only a block's first column searches for its positions.
+/// For each entry of H's upper triangle (laid out by `layout`), its
+/// position among L's values. H's entry (i, j), i ≤ j, is L's (j, i):
+/// column i, row j. A block of H, rows of block r and columns of block c,
+/// lies in the columns of r's supernode s (supernodes are runs of whole
+/// blocks), where c's rows are consecutive: its entry (a, b) is at
+/// base + a·height + b, base being c's first row in r's first column. One
+/// search per block; `None` if a block's rows are not where the structure
+/// puts them.
 fn h_positions(
     symbolic: &SupernodalSymbolic,
-    upper: SymbolicSparseColMatRef<'_, usize>,
+    layout: &HessianLayout,
     supernode_of: &[usize],
 ) -> Option<Vec<u32>> {
     let val_ptr = symbolic.val_ptr();
-    let mut h_to_l = Vec::with_capacity(upper.row_idx().len());
-    // The current column's runs: (rows, base, height).
-    let mut runs: Vec<(usize, usize, usize)> = Vec::new();
-    let mut previous: &[usize] = &[];
-    for c in 0..upper.ncols() {
-        let rows = upper.row_idx_of_col_raw(c);
-        let continues = c > 0
-            && rows.split_last() == Some((&c, previous))
-            && supernode_of.get(c) == supernode_of.get(c - 1);
-        if continues {
-            runs.iter_mut().for_each(|run| run.1 += 1);
-            if let Some(last) = runs.last_mut() {
-                last.0 += 1;
+    let (block_ptr, block_rows) = (layout.blocks().col_ptr(), layout.blocks().row_idx());
+    let (first, dims) = (layout.block_column(), layout.dims());
+    let mut h_to_l = Vec::with_capacity(layout.nnz());
+    // The current block column's blocks: (base, height, rows).
+    let mut bases: Vec<(usize, usize, usize)> = Vec::new();
+    for c in 0..dims.len() {
+        let (cc, dc) = (first[c], dims[c]);
+        bases.clear();
+        for &r in &block_rows[block_ptr[c]..block_ptr[c + 1]] {
+            let s = *supernode_of.get(first[r])?;
+            let (start, width, height, below) = symbolic.supernode(s);
+            let p = position(cc, start, width, below)?;
+            if position(cc + dc - 1, start, width, below)? != p + dc - 1 {
+                return None;
             }
-        } else {
-            runs.clear();
-            let mut rest = rows;
-            while let Some(&r) = rest.first() {
-                let s = *supernode_of.get(r)?;
-                let (start, width, height, below) = symbolic.supernode(s);
-                let p = position(c, start, width, below)?;
-                let len = rest
-                    .iter()
-                    .position(|&r| r >= start + width)
-                    .unwrap_or(rest.len());
-                runs.push((len, (val_ptr[s] + p).wrapping_sub(start * height), height));
-                rest = &rest[len..];
+            bases.push((
+                val_ptr[s] + (first[r] - start) * height + p,
+                height,
+                dims[r],
+            ));
+        }
+        for b in 0..dc {
+            let last = bases.len() - 1;
+            for (k, &(base, height, rows)) in bases.iter().enumerate() {
+                // The diagonal block, last, down to the diagonal.
+                let rows = if k == last { b + 1 } else { rows };
+                h_to_l.extend((0..rows).map(|a| (base + a * height + b) as u32));
             }
         }
-        let mut rest = rows;
-        for &(len, base, height) in &runs {
-            let (run, after) = rest.split_at(len);
-            h_to_l.extend(run.iter().map(|&r| base.wrapping_add(r * height) as u32));
-            rest = after;
-        }
-        previous = rows;
     }
     Some(h_to_l)
 }
@@ -156,25 +149,25 @@ fn update_positions(
 }
 
 impl SupernodalNumeric {
-    /// The plan for H's upper triangle `upper` on `symbolic` (the
+    /// The plan for H (laid out by `layout`) on `symbolic` (the
     /// structure of its factor). `None` if the pattern does not fit the
     /// structure (which the analysis rules out), the plan would outgrow the
     /// factor, or the factor has more values than its `u32` positions reach
     /// (32 GB of them).
     pub(crate) fn new(
         symbolic: &SupernodalSymbolic,
-        upper: SymbolicSparseColMatRef<'_, usize>,
+        layout: &HessianLayout,
         par: Par,
     ) -> Option<Self> {
         u32::try_from(symbolic.len_val()).ok()?;
         let n_supernodes = symbolic.n_supernodes();
         let val_ptr = symbolic.val_ptr();
-        let mut supernode_of = vec![0; upper.ncols()];
+        let mut supernode_of = vec![0; symbolic.dim()];
         for s in 0..n_supernodes {
             let (start, width, _, _) = symbolic.supernode(s);
             supernode_of[start..start + width].fill(s);
         }
-        let h_to_l = h_positions(symbolic, upper, &supernode_of)?;
+        let h_to_l = h_positions(symbolic, layout, &supernode_of)?;
         // Each supernode d's rows below, in runs that fall in one later
         // supernode s (a group); column j of d's update goes to s's column
         // of the row j, its rows from j on to their positions there (rel).
@@ -336,14 +329,14 @@ impl std::fmt::Debug for SupernodalCholesky {
 }
 
 impl SupernodalCholesky {
-    /// The factor of H (upper triangle `upper`) with the structure
+    /// The factor of H (laid out by `layout`) with the structure
     /// `symbolic`; `None` if its plan would outgrow the factor.
     pub(crate) fn new(
         symbolic: SupernodalSymbolic,
-        upper: SymbolicSparseColMatRef<'_, usize>,
+        layout: &HessianLayout,
         par: Par,
     ) -> Option<Self> {
-        let numeric = SupernodalNumeric::new(&symbolic, upper, par)?;
+        let numeric = SupernodalNumeric::new(&symbolic, layout, par)?;
         Some(Self {
             numeric,
             values: vec![0.0; symbolic.len_val()],

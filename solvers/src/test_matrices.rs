@@ -1,5 +1,6 @@
 //! Random block-structured Hessians for the factorisation tests.
 
+use crate::hessian_layout::HessianLayout;
 use faer::Side;
 use faer::sparse::SymbolicSparseColMat;
 use faer::sparse::linalg::cholesky::{
@@ -87,6 +88,11 @@ pub(crate) fn block_h(
         SymbolicSparseColMat::new_checked(n, n, sp, None, si),
         values,
     )
+}
+
+/// The layout of the H that [`block_h`] makes from `blocks` and `dims`.
+pub(crate) fn layout(blocks: &SymbolicSparseColMat<usize>, dims: &[usize]) -> HessianLayout {
+    HessianLayout::new(blocks.clone(), dims.to_vec()).expect("block_h's pattern")
 }
 
 /// H·x for the symmetric H whose upper triangle is `pattern` and `values`.

@@ -38,7 +38,8 @@ impl Optimizer {
             let gn_norm = dot(&gauss_newton, &gauss_newton).sqrt();
             // Cauchy point: minimiser of the model along −g.
             self.structure
-                .hessian_times(&self.hessian, &self.gradient, &mut product);
+                .layout
+                .times(&self.hessian, &self.gradient, &mut product);
             let g2 = dot(&self.gradient, &self.gradient);
             let curvature = dot(&self.gradient, &product);
             let t = if curvature > 0.0 {
@@ -75,7 +76,8 @@ impl Optimizer {
                     }
                 }
                 self.structure
-                    .hessian_times(&self.hessian, &self.step, &mut product);
+                    .layout
+                    .times(&self.hessian, &self.step, &mut product);
                 let predicted =
                     -(2.0 * dot(&self.gradient, &self.step) + dot(&self.step, &product));
                 let step_norm = dot(&self.step, &self.step).sqrt();

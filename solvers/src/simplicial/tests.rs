@@ -1,7 +1,7 @@
 //! The block analysis and factorisation against faer, pivots, flops.
 
 use super::*;
-use crate::test_matrices::{faer_analysis, random_h, upper_times};
+use crate::test_matrices::{faer_analysis, layout, random_h, upper_times};
 use faer::Par;
 use faer::Side;
 use faer::dyn_stack::{MemBuffer, MemStack};
@@ -50,18 +50,16 @@ fn block_simplicial_factor_matches_faer() {
             }
         }
 
-        let mut chol = SimplicialCholesky::new(ours).unwrap();
+        let mut chol = SimplicialCholesky::new(ours, &layout(&blocks, &dims)).unwrap();
         if trial % 4 == 0 {
             let mut bad = values.clone();
             let c = rng.random_range(0..n);
             bad[scalar.col_ptr()[c + 1] - 1] = -1.0;
-            let h = SparseColMatRef::new(scalar.as_ref(), &bad);
-            let err = chol.factorize(h).unwrap_err();
+            let err = chol.factorize(&bad).unwrap_err();
             assert!(err.pivot <= c + 1, "pivot {} after column {c}", err.pivot);
             assert!(chol.work.iter().all(|&w| w == 0.0));
         }
-        chol.factorize(SparseColMatRef::new(scalar.as_ref(), &values))
-            .unwrap();
+        chol.factorize(&values).unwrap();
         let mut faer_values = vec![0.0; faer_symbolic.len_val()];
         let mut mem = MemBuffer::new(
             faer_symbolic.factorize_numeric_llt_scratch::<f64>(Par::Seq, Default::default()),
@@ -69,7 +67,7 @@ fn block_simplicial_factor_matches_faer() {
         faer_symbolic
             .factorize_numeric_llt(
                 &mut faer_values,
-                SparseColMatRef::new(scalar.as_ref(), &values),
+                faer::sparse::SparseColMatRef::new(scalar.as_ref(), &values),
                 Side::Upper,
                 LltRegularization::default(),
                 Par::Seq,
@@ -97,19 +95,22 @@ fn a_non_positive_pivot_names_its_column() {
     let blocks =
         SymbolicSparseColMat::new_checked(3, 3, vec![0, 1, 3, 5], None, vec![0, 0, 1, 1, 2]);
     let symbolic = SimplicialSymbolic::analyze(blocks.as_ref(), &[1, 1, 1]).unwrap();
-    let mut chol = SimplicialCholesky::new(symbolic).unwrap();
+    let mut chol = SimplicialCholesky::new(symbolic, &layout(&blocks, &[1, 1, 1])).unwrap();
     let values = [1.0, 2.0, 1.0, 0.0, 1.0];
-    let h = SparseColMatRef::new(blocks.as_ref(), &values);
-    assert_eq!(chol.factorize(h), Err(NotPositiveDefinite { pivot: 2 }));
+    assert_eq!(
+        chol.factorize(&values),
+        Err(NotPositiveDefinite { pivot: 2 })
+    );
     // Inside one 3×3 block (its rows formed together): the same pivot.
     let block = SymbolicSparseColMat::new_checked(1, 1, vec![0, 1], None, vec![0]);
-    let scalar =
-        SymbolicSparseColMat::new_checked(3, 3, vec![0, 1, 3, 6], None, vec![0, 0, 1, 0, 1, 2]);
     let symbolic = SimplicialSymbolic::analyze(block.as_ref(), &[3]).unwrap();
-    let mut chol = SimplicialCholesky::new(symbolic).unwrap();
+    let mut chol = SimplicialCholesky::new(symbolic, &layout(&block, &[3])).unwrap();
+    // Column by column: (0, 0); (0, 1) (1, 1); (0, 2) (1, 2) (2, 2).
     let values = [1.0, 2.0, 1.0, 0.0, 0.0, 1.0];
-    let h = SparseColMatRef::new(scalar.as_ref(), &values);
-    assert_eq!(chol.factorize(h), Err(NotPositiveDefinite { pivot: 2 }));
+    assert_eq!(
+        chol.factorize(&values),
+        Err(NotPositiveDefinite { pivot: 2 })
+    );
     assert!(chol.work.iter().all(|&w| w == 0.0));
 }
 

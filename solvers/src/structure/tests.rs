@@ -189,7 +189,8 @@ fn assembly_matches_a_plain_sum_of_the_edges_blocks() {
         let mut values = vec![f64::NAN; s.nnz()];
         let mut gradient = vec![f64::NAN; s.dim];
         a.assemble(&s, &buffer, &mut values, &mut gradient);
-        let (col_ptr, row_idx) = (s.pattern.col_ptr(), s.pattern.row_idx());
+        let pattern = s.layout.scalar_pattern();
+        let (col_ptr, row_idx) = (pattern.col_ptr(), pattern.row_idx());
         let mut stored = HashSet::new();
         for j in 0..s.dim {
             assert!(row_idx[col_ptr[j]..col_ptr[j + 1]].is_sorted());

@@ -3,7 +3,7 @@
 
 use super::*;
 use crate::simplicial::SimplicialSymbolic;
-use crate::test_matrices::{faer_analysis, random_h, upper_times};
+use crate::test_matrices::{faer_analysis, layout, random_h, upper_times};
 use faer::Side;
 use faer::sparse::SparseColMatRef;
 use faer::sparse::SymbolicSparseColMat;
@@ -120,7 +120,8 @@ fn supernodal_factor_matches_faer() {
         let (blocks, dims, pattern, mut values) = random_h(&mut rng);
         let symbolic = analyze(&pattern);
         let supernodal = &ours(&blocks, &dims);
-        let mut numeric = SupernodalNumeric::new(supernodal, pattern.as_ref(), Par::Seq).unwrap();
+        let layout = layout(&blocks, &dims);
+        let mut numeric = SupernodalNumeric::new(supernodal, &layout, Par::Seq).unwrap();
         let mut ours = vec![f64::NAN; symbolic.len_val()];
         let want = faer_factor(&symbolic, &pattern, &values).unwrap();
         numeric
@@ -174,16 +175,13 @@ fn supernodal_solve_matches_the_simplicial_one() {
                 factorization,
                 ..Default::default()
             };
-            let mut c =
-                SparseCholesky::analyze(scalar.as_ref(), blocks.as_ref(), &dims, &config).unwrap();
-            c.factorize(scalar.as_ref(), &values).unwrap();
+            let mut c = SparseCholesky::analyze(&layout(&blocks, &dims), &config).unwrap();
+            c.factorize(&values).unwrap();
             let mut x = b.clone();
             assert!(c.solve_in_place(&mut x));
             // The solve begun in the factorisation gives the same x.
             let mut y = b.clone();
-            let begun = c
-                .factorize_and_begin_solve(scalar.as_ref(), &values, &mut y)
-                .unwrap();
+            let begun = c.factorize_and_begin_solve(&values, &mut y).unwrap();
             c.finish_solve(begun, &mut y);
             for (a, b) in x.iter().zip(&y) {
                 assert!((a - b).abs() <= 1e-12 * (1.0 + b.abs()), "{a} vs {b}");
@@ -237,19 +235,19 @@ fn a_plan_larger_than_its_factor_falls_back_to_simplicial() {
     let (blocks, dims, scalar, values) = block_h(&mut rng, vec![1; k + 2 * p], rows);
     let symbolic = ours(&blocks, &dims);
     let supernodes = symbolic.n_supernodes();
-    assert!(SupernodalNumeric::new(&symbolic, scalar.as_ref(), Par::Seq).is_none());
+    let layout = layout(&blocks, &dims);
+    assert!(SupernodalNumeric::new(&symbolic, &layout, Par::Seq).is_none());
     let config = LinearSolverConfig {
         factorization: Factorization::Supernodal,
         ..Default::default()
     };
-    let mut cholesky =
-        SparseCholesky::analyze(scalar.as_ref(), blocks.as_ref(), &dims, &config).unwrap();
+    let mut cholesky = SparseCholesky::analyze(&layout, &config).unwrap();
     assert!(!cholesky.is_supernodal(), "{supernodes} supernodes");
     let b: Vec<f64> = (0..dims.len())
         .map(|_| rng.random_range(-1.0..1.0))
         .collect();
     let mut x = b.clone();
-    cholesky.factorize(scalar.as_ref(), &values).unwrap();
+    cholesky.factorize(&values).unwrap();
     assert!(cholesky.solve_in_place(&mut x));
     for (a, b) in upper_times(&scalar, &values, &x).iter().zip(&b) {
         assert!((a - b).abs() <= 1e-9, "{a} vs {b}");
