@@ -119,8 +119,9 @@ pub struct NotPositiveDefinite {
 /// The block structure of H: one row and column per free vertex.
 #[derive(Clone, Copy, Debug)]
 pub struct Blocks<'a> {
-    /// Pattern of the upper block triangle.
-    pub pattern: SymbolicSparseColMatRef<'a, usize>,
+    /// Pattern of the upper block triangle (`u32` indices, as faer's AMD
+    /// takes them: its work arrays then take half the memory).
+    pub pattern: SymbolicSparseColMatRef<'a, u32>,
     /// Tangent dimension of each block.
     pub dims: &'a [usize],
     /// Whether each block is a pose (the others are landmarks).
@@ -137,24 +138,15 @@ fn par(config: &LinearSolverConfig) -> Par {
 }
 
 /// Approximate minimum degree order of the blocks of `pattern`.
-fn amd(pattern: SymbolicSparseColMatRef<'_, usize>) -> Result<Vec<usize>, SolveError> {
-    let n = pattern.ncols();
-    let nnz = pattern.row_idx().len();
-    // faer's AMD on u32 indices: its work arrays take half the memory.
-    let narrow =
-        |v: &[usize]| -> Option<Vec<u32>> { v.iter().map(|&x| u32::try_from(x).ok()).collect() };
-    let (Some(col_ptr), Some(row_idx)) = (narrow(pattern.col_ptr()), narrow(pattern.row_idx()))
-    else {
-        return Err(SolveError::TooLarge { entries: nnz });
-    };
-    let pattern = SymbolicSparseColMat::new_checked(n, n, col_ptr, None, row_idx);
+fn amd(pattern: SymbolicSparseColMatRef<'_, u32>) -> Result<Vec<usize>, SolveError> {
+    let (n, nnz) = (pattern.ncols(), pattern.row_idx().len());
     let (mut perm, mut perm_inv) = (vec![0u32; n], vec![0u32; n]);
     let mut scratch = MemBuffer::try_new(faer::sparse::linalg::amd::order_scratch::<u32>(n, nnz))
         .map_err(|_| SolveError::OutOfMemory)?;
     faer::sparse::linalg::amd::order(
         &mut perm,
         &mut perm_inv,
-        pattern.as_ref(),
+        pattern,
         Default::default(),
         MemStack::new(&mut scratch),
     )
@@ -168,8 +160,15 @@ fn amd(pattern: SymbolicSparseColMatRef<'_, usize>) -> Result<Vec<usize>, SolveE
 fn schur_order(blocks: Blocks<'_>) -> Result<Vec<usize>, SolveError> {
     let n = blocks.dims.len();
     let mut neighbours = vec![Vec::new(); n];
+    let rows_of = |c: usize| {
+        blocks
+            .pattern
+            .row_idx_of_col_raw(c)
+            .iter()
+            .map(|&r| r as usize)
+    };
     for c in 0..n {
-        for &r in blocks.pattern.row_idx_of_col_raw(c) {
+        for r in rows_of(c) {
             if r != c {
                 neighbours[r].push(c);
                 neighbours[c].push(r);
@@ -188,7 +187,7 @@ fn schur_order(blocks: Blocks<'_>) -> Result<Vec<usize>, SolveError> {
     // a clique on the neighbours of each eliminated landmark.
     let mut rows: Vec<Vec<usize>> = (0..kept.len()).map(|k| vec![k]).collect();
     for c in 0..n {
-        for &r in blocks.pattern.row_idx_of_col_raw(c) {
+        for r in rows_of(c) {
             if r != c && !eliminated[r] && !eliminated[c] {
                 let (a, b) = (index[r].min(index[c]), index[r].max(index[c]));
                 rows[b].push(a);
@@ -204,13 +203,16 @@ fn schur_order(blocks: Blocks<'_>) -> Result<Vec<usize>, SolveError> {
             }
         }
     }
-    let mut col_ptr = vec![0usize];
-    let mut row_idx = Vec::new();
+    let mut col_ptr = vec![0u32];
+    let mut row_idx: Vec<u32> = Vec::new();
     for col in &mut rows {
         col.sort_unstable();
         col.dedup();
-        row_idx.extend_from_slice(col);
-        col_ptr.push(row_idx.len());
+        row_idx.extend(col.iter().map(|&r| r as u32));
+        let end = u32::try_from(row_idx.len()).map_err(|_| SolveError::TooLarge {
+            entries: row_idx.len(),
+        })?;
+        col_ptr.push(end);
     }
     let reduced = SymbolicSparseColMat::new_checked(kept.len(), kept.len(), col_ptr, None, row_idx);
     let pose_order = amd(reduced.as_ref())?;

@@ -12,7 +12,7 @@ use crate::hessian_layout::HessianLayout;
 use crate::linear::{Blocks, Ordering, block_order};
 use cairn_core::Graph;
 use cairn_core::layout::{self, BlockTarget, Scatter};
-use faer::sparse::SymbolicSparseColMat;
+use faer::sparse::{SymbolicSparseColMat, SymbolicSparseColMatRef};
 
 /// The Hessian's fixed structure for one graph and one set of fixed vertices.
 #[derive(Debug)]
@@ -119,15 +119,14 @@ fn permuted(col_ptr: &[usize], row_idx: &[u32], order: &[usize]) -> (Vec<usize>,
     for (k, &b) in order.iter().enumerate() {
         new_index[b] = k as u32;
     }
-    let new_index = &new_index;
-    let pairs: Vec<(u32, u32)> = (0..order.len())
-        .flat_map(|c| {
-            row_idx[col_ptr[c]..col_ptr[c + 1]].iter().map(move |&r| {
-                let (a, b) = (new_index[r as usize], new_index[c]);
-                (a.max(b), a.min(b))
-            })
-        })
-        .collect();
+    let mut pairs: Vec<(u32, u32)> = Vec::with_capacity(row_idx.len());
+    for c in 0..order.len() {
+        let b = new_index[c];
+        for &r in &row_idx[col_ptr[c]..col_ptr[c + 1]] {
+            let a = new_index[r as usize];
+            pairs.push((a.max(b), a.min(b)));
+        }
+    }
     let (col_ptr, mut row_idx) = group_by_key(order.len(), &pairs);
     for c in 0..order.len() {
         row_idx[col_ptr[c]..col_ptr[c + 1]].sort_unstable();
@@ -152,18 +151,18 @@ impl HessianStructure {
         let mut free: Vec<usize> = (0..n).filter(|&v| !fixed[v]).collect();
         let (mut block_col_ptr, mut block_row_idx) = block_pattern(graph, &block_indices(n, &free));
         if matches!(ordering, Ordering::BlockAmd | Ordering::Schur) {
-            let pattern = SymbolicSparseColMat::new_checked(
-                free.len(),
-                free.len(),
-                block_col_ptr.clone(),
-                None,
-                block_row_idx.iter().map(|&r| r as usize).collect(),
-            );
+            let col_ptr = block_col_ptr.iter().map(|&p| u32::try_from(p).ok());
+            let col_ptr: Vec<u32> = col_ptr.collect::<Option<_>>().ok_or(SolveError::TooLarge {
+                entries: block_row_idx.len(),
+            })?;
+            let n = free.len();
+            let pattern =
+                SymbolicSparseColMatRef::new_checked(n, n, &col_ptr, None, &block_row_idx);
             let dims: Vec<usize> = free.iter().map(|&v| vdim[v]).collect();
             let is_pose: Vec<bool> = free.iter().map(|&v| graph.vertex(v).kind.is_pose).collect();
             let order = block_order(
                 Blocks {
-                    pattern: pattern.as_ref(),
+                    pattern,
                     dims: &dims,
                     is_pose: &is_pose,
                 },

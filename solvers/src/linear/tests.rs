@@ -1,10 +1,10 @@
 use super::*;
 
 /// Upper block pattern (with diagonal) of the given undirected couplings.
-fn pattern(n: usize, couplings: &[(usize, usize)]) -> SymbolicSparseColMat<usize> {
-    let mut rows: Vec<Vec<usize>> = (0..n).map(|c| vec![c]).collect();
+fn pattern(n: usize, couplings: &[(u32, u32)]) -> SymbolicSparseColMat<u32> {
+    let mut rows: Vec<Vec<u32>> = (0..n as u32).map(|c| vec![c]).collect();
     for &(a, b) in couplings {
-        rows[a.max(b)].push(a.min(b));
+        rows[a.max(b) as usize].push(a.min(b));
     }
     let mut col_ptr = vec![0];
     let mut row_idx = Vec::new();
@@ -12,7 +12,7 @@ fn pattern(n: usize, couplings: &[(usize, usize)]) -> SymbolicSparseColMat<usize
         r.sort_unstable();
         r.dedup();
         row_idx.extend(r);
-        col_ptr.push(row_idx.len());
+        col_ptr.push(row_idx.len() as u32);
     }
     SymbolicSparseColMat::new_checked(n, n, col_ptr, None, row_idx)
 }
