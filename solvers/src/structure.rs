@@ -220,11 +220,14 @@ impl HessianStructure {
         // Where every edge's blocks and gradient segments add: each block's
         // target in H (transposed for a block below the diagonal), none if
         // a vertex is fixed.
-        let mut block_targets = Vec::new();
-        let mut column_targets = Vec::new();
-        let mut group_targets = Vec::new();
+        let groups = graph.factor_groups();
+        let arities = || groups.iter().map(|g| (g.len(), g.vertex_dims().len()));
+        let mut block_targets =
+            Vec::with_capacity(arities().map(|(n, a)| n * a * (a + 1) / 2).sum());
+        let mut column_targets = Vec::with_capacity(arities().map(|(n, a)| n * a).sum());
+        let mut group_targets = Vec::with_capacity(groups.len());
         let (mut edges, mut buffer_len) = (0, 0);
-        for g in graph.factor_groups() {
+        for g in groups {
             group_targets.push([block_targets.len(), column_targets.len(), edges]);
             edges += g.len();
             buffer_len += g.len() * layout::stride(g.vertex_dims());
