@@ -352,7 +352,7 @@ impl SparseCholesky {
             };
             Self::faer(layout.scalar_pattern(), threshold, config)?
         } else {
-            let blocks = SimplicialSymbolic::analyze(layout.blocks(), layout.dims())?;
+            let blocks = SimplicialSymbolic::analyze(layout)?;
             let simplicial = match config.factorization {
                 Factorization::Supernodal => false,
                 Factorization::Simplicial => true,

@@ -14,7 +14,6 @@ use crate::hessian_layout::HessianLayout;
 use crate::linear::NotPositiveDefinite;
 use crate::selected_inverse::LowerFactor;
 use crate::structure::group_by_key;
-use faer::sparse::SymbolicSparseColMatRef;
 
 /// The factor's structure from the block analysis, before any values.
 #[derive(Debug)]
@@ -38,20 +37,10 @@ pub struct SimplicialSymbolic {
 impl SimplicialSymbolic {
     /// Elimination tree and fill of the block pattern (Liu's algorithm: the
     /// blocks that row K of L reaches are those met walking up the tree from
-    /// each block of H's column K). `pattern` is the upper block triangle
-    /// (rows sorted, diagonal included), `dims` each block's size.
-    pub fn analyze(
-        pattern: SymbolicSparseColMatRef<'_, usize>,
-        dims: &[usize],
-    ) -> Result<Self, SolveError> {
-        let nb = dims.len();
-        let mut block_column = Vec::with_capacity(nb + 1);
-        let mut dim = 0usize;
-        for &d in dims {
-            block_column.push(dim);
-            dim += d;
-        }
-        block_column.push(dim);
+    /// each block of H's column K), for H laid out by `layout`.
+    pub fn analyze(layout: &HessianLayout) -> Result<Self, SolveError> {
+        let (pattern, dims) = (layout.blocks(), layout.dims());
+        let (nb, dim) = (dims.len(), layout.dim());
         const NONE: usize = usize::MAX;
         let mut parent = vec![NONE; nb];
         let mut degree = vec![0usize; nb];
@@ -93,7 +82,7 @@ impl SimplicialSymbolic {
             row_blocks,
             parent: parent.iter().map(|&p| p as u32).collect(),
             degree,
-            block_column,
+            block_column: layout.block_column().to_vec(),
             col_ptr,
         })
     }

@@ -22,7 +22,8 @@ fn block_simplicial_factor_matches_faer() {
     for trial in 0..200 {
         let (blocks, dims, scalar, values) = random_h(&mut rng);
         let n = scalar.ncols();
-        let ours = SimplicialSymbolic::analyze(blocks.as_ref(), &dims).unwrap();
+        let layout = layout(&blocks, &dims);
+        let ours = SimplicialSymbolic::analyze(&layout).unwrap();
         let params = CholeskySymbolicParams {
             supernodal_flop_ratio_threshold: SupernodalThreshold::FORCE_SIMPLICIAL,
             ..Default::default()
@@ -50,7 +51,7 @@ fn block_simplicial_factor_matches_faer() {
             }
         }
 
-        let mut chol = SimplicialCholesky::new(ours, &layout(&blocks, &dims)).unwrap();
+        let mut chol = SimplicialCholesky::new(ours, &layout).unwrap();
         if trial % 4 == 0 {
             let mut bad = values.clone();
             let c = rng.random_range(0..n);
@@ -94,8 +95,9 @@ fn a_non_positive_pivot_names_its_column() {
     // Three 1×1 blocks in a chain; column 1's pivot is 1 - 2² < 0.
     let blocks =
         SymbolicSparseColMat::new_checked(3, 3, vec![0, 1, 3, 5], None, vec![0, 0, 1, 1, 2]);
-    let symbolic = SimplicialSymbolic::analyze(blocks.as_ref(), &[1, 1, 1]).unwrap();
-    let mut chol = SimplicialCholesky::new(symbolic, &layout(&blocks, &[1, 1, 1])).unwrap();
+    let chain = layout(&blocks, &[1, 1, 1]);
+    let symbolic = SimplicialSymbolic::analyze(&chain).unwrap();
+    let mut chol = SimplicialCholesky::new(symbolic, &chain).unwrap();
     let values = [1.0, 2.0, 1.0, 0.0, 1.0];
     assert_eq!(
         chol.factorize(&values),
@@ -103,8 +105,9 @@ fn a_non_positive_pivot_names_its_column() {
     );
     // Inside one 3×3 block (its rows formed together): the same pivot.
     let block = SymbolicSparseColMat::new_checked(1, 1, vec![0, 1], None, vec![0]);
-    let symbolic = SimplicialSymbolic::analyze(block.as_ref(), &[3]).unwrap();
-    let mut chol = SimplicialCholesky::new(symbolic, &layout(&block, &[3])).unwrap();
+    let one_block = layout(&block, &[3]);
+    let symbolic = SimplicialSymbolic::analyze(&one_block).unwrap();
+    let mut chol = SimplicialCholesky::new(symbolic, &one_block).unwrap();
     // Column by column: (0, 0); (0, 1) (1, 1); (0, 2) (1, 2) (2, 2).
     let values = [1.0, 2.0, 1.0, 0.0, 0.0, 1.0];
     assert_eq!(
@@ -119,7 +122,7 @@ fn a_non_positive_pivot_names_its_column() {
 fn flops_per_value_counts_as_faer() {
     // One dense 3×3 block: columns of 3, 2 and 1 values.
     let blocks = SymbolicSparseColMat::new_checked(1, 1, vec![0, 1], None, vec![0]);
-    let symbolic = SimplicialSymbolic::analyze(blocks.as_ref(), &[3]).unwrap();
+    let symbolic = SimplicialSymbolic::analyze(&layout(&blocks, &[3])).unwrap();
     let flops = (3.0 + 6.0) + (2.0 + 3.0) + (1.0 + 1.0);
     assert_eq!(symbolic.flops_per_value(), flops / 6.0);
 }

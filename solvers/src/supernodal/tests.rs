@@ -50,7 +50,7 @@ fn faer_factor(
 /// Cairn's supernodal structure of the factor of the block matrix with
 /// upper block triangle `blocks` and block sizes `dims`.
 fn ours(blocks: &SymbolicSparseColMat<usize>, dims: &[usize]) -> SupernodalSymbolic {
-    let analysis = SimplicialSymbolic::analyze(blocks.as_ref(), dims).unwrap();
+    let analysis = SimplicialSymbolic::analyze(&layout(blocks, dims)).unwrap();
     SupernodalSymbolic::from_blocks(&analysis).unwrap()
 }
 
