@@ -126,9 +126,9 @@ impl HessianLayout {
     }
 
     /// Position among the values of each diagonal entry (the last of its
-    /// column).
-    pub fn diagonal(&self) -> Vec<usize> {
-        self.col_ptr[1..].iter().map(|&end| end - 1).collect()
+    /// column), column by column.
+    pub fn diagonal(&self) -> impl ExactSizeIterator<Item = usize> + '_ {
+        self.col_ptr[1..].iter().map(|&end| end - 1)
     }
 
     /// The scalar pattern of H's upper triangle, for faer's factorisation.
@@ -196,7 +196,7 @@ mod tests {
             assert_eq!(built.col_ptr(), scalar.col_ptr());
             assert_eq!(built.row_idx(), scalar.row_idx());
             assert_eq!(layout.nnz(), values.len());
-            for (j, &d) in layout.diagonal().iter().enumerate() {
+            for (j, d) in layout.diagonal().enumerate() {
                 assert_eq!(scalar.row_idx()[d], j);
             }
             let x: Vec<f64> = (0..layout.dim()).map(|i| (i as f64).sin()).collect();

@@ -121,7 +121,7 @@ impl Optimizer {
             chi2_terms: vec![0.0; structure.num_edges()],
             pending: Pending::Nothing,
             hessian: vec![0.0; structure.nnz()],
-            diagonal_backup: vec![0.0; structure.diagonal.len()],
+            diagonal_backup: vec![0.0; structure.dim],
             damping: vec![0.0; structure.dim],
             gradient: vec![0.0; structure.dim],
             step: vec![0.0; structure.dim],
@@ -344,7 +344,7 @@ impl Optimizer {
         };
         let t = Instant::now();
         if lambda != 0.0 {
-            for (k, &d) in self.structure.diagonal.iter().enumerate() {
+            for (k, d) in self.structure.layout.diagonal().enumerate() {
                 self.diagonal_backup[k] = self.hessian[d];
                 self.hessian[d] += lambda * self.damping[k];
             }
@@ -354,7 +354,7 @@ impl Optimizer {
         }
         let begun = cholesky.factorize_and_begin_solve(&self.hessian, &mut self.step);
         if lambda != 0.0 {
-            for (k, &d) in self.structure.diagonal.iter().enumerate() {
+            for (k, d) in self.structure.layout.diagonal().enumerate() {
                 self.hessian[d] = self.diagonal_backup[k];
             }
         }

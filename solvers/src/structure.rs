@@ -24,8 +24,6 @@ pub struct HessianStructure {
     /// Where H's entries sit among its values, by vertex block: one row and
     /// column per free vertex, in column order.
     pub layout: HessianLayout,
-    /// Index into the values of each diagonal entry (for LM damping).
-    pub diagonal: Vec<usize>,
     /// Each vertex's block (its position in column order), `u32::MAX` if fixed.
     pub(crate) block_of: Vec<u32>,
     /// Number of edges.
@@ -155,9 +153,9 @@ impl HessianStructure {
             let col_ptr: Vec<u32> = col_ptr.collect::<Option<_>>().ok_or(SolveError::TooLarge {
                 entries: block_row_idx.len(),
             })?;
-            let n = free.len();
+            let nb = free.len();
             let pattern =
-                SymbolicSparseColMatRef::new_checked(n, n, &col_ptr, None, &block_row_idx);
+                SymbolicSparseColMatRef::new_checked(nb, nb, &col_ptr, None, &block_row_idx);
             let dims: Vec<usize> = free.iter().map(|&v| vdim[v]).collect();
             let is_pose: Vec<bool> = free.iter().map(|&v| graph.vertex(v).kind.is_pose).collect();
             let order = block_order(
@@ -262,7 +260,6 @@ impl HessianStructure {
         Ok(Self {
             column,
             dim: hessian.dim(),
-            diagonal: hessian.diagonal(),
             layout: hessian,
             block_of,
             edges,

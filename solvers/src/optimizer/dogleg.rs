@@ -133,9 +133,9 @@ impl Optimizer {
     fn damped_gauss_newton_step(&mut self, phases: &mut PhaseTimes) -> bool {
         let max_diagonal = self
             .structure
-            .diagonal
-            .iter()
-            .fold(0.0f64, |m, &d| m.max(self.hessian[d].abs()));
+            .layout
+            .diagonal()
+            .fold(0.0f64, |m, d| m.max(self.hessian[d].abs()));
         self.damping.fill(1.0);
         let mut damping = 0.0;
         for _ in 0..12 {

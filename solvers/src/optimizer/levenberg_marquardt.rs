@@ -95,7 +95,11 @@ impl Optimizer {
         match self.config.lm.damping {
             Damping::Levenberg => self.damping.fill(1.0),
             Damping::Marquardt => {
-                for (d, &k) in self.damping.iter_mut().zip(&self.structure.diagonal) {
+                for (d, k) in self
+                    .damping
+                    .iter_mut()
+                    .zip(self.structure.layout.diagonal())
+                {
                     *d = self.hessian[k].clamp(1e-6, 1e32);
                 }
             }
@@ -119,9 +123,9 @@ impl Optimizer {
         let mut chi2 = summary.initial_chi2;
         let max_diagonal = self
             .structure
-            .diagonal
-            .iter()
-            .fold(0.0f64, |m, &d| m.max(self.hessian[d].abs()));
+            .layout
+            .diagonal()
+            .fold(0.0f64, |m, d| m.max(self.hessian[d].abs()));
         let mut lambda = match self.config.lm.damping {
             Damping::Marquardt => self.config.lm.tau,
             Damping::Levenberg => self.config.lm.tau * max_diagonal.max(f64::MIN_POSITIVE),
