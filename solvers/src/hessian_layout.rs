@@ -12,6 +12,21 @@ use faer::sparse::{SymbolicSparseColMat, SymbolicSparseColMatRef};
 use std::ops::Range;
 
 /// The layout of H's upper triangle, given by its vertex blocks.
+///
+/// ```
+/// use cairn_solvers::HessianLayout;
+/// use faer::sparse::SymbolicSparseColMat;
+///
+/// // A 3×3 block (an SE2 pose) and a 2×2 one (an XY landmark) coupled:
+/// // block column 1 holds block rows 0 and 1.
+/// let blocks = SymbolicSparseColMat::new_checked(2, 2, vec![0, 1, 3], None, vec![0, 0, 1]);
+/// let layout = HessianLayout::new(blocks, vec![3, 2]).unwrap();
+/// assert_eq!(layout.dim(), 5);
+/// // The pose's upper triangle (6), then each landmark column: the pose's
+/// // 3 rows and the landmark's rows down to the diagonal (4 and 5).
+/// assert_eq!(layout.col_ptr(), &[0, 1, 3, 6, 10, 15]);
+/// assert_eq!(layout.diagonal().collect::<Vec<_>>(), [0, 2, 5, 9, 14]);
+/// ```
 #[derive(Clone, Debug)]
 pub struct HessianLayout {
     /// Upper block triangle: each column's block rows ascending, the
