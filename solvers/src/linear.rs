@@ -247,6 +247,8 @@ pub struct BegunSolve {
 pub struct SparseCholesky {
     factor: Factor,
     factored: bool,
+    /// Entries of H's upper triangle in the analysed layout.
+    nnz: usize,
 }
 
 /// Cairn's block-aware factors, simplicial or supernodal, or faer's (under
@@ -363,6 +365,7 @@ impl SparseCholesky {
         Ok(Self {
             factor,
             factored: false,
+            nnz: layout.nnz(),
         })
     }
 
@@ -440,6 +443,10 @@ impl SparseCholesky {
 
     /// Numeric factorisation of H given by the `values` of its upper
     /// triangle, in the layout the analysis was given.
+    ///
+    /// # Panics
+    ///
+    /// If `values` does not hold one value per entry of that layout.
     pub fn factorize(&mut self, values: &[f64]) -> Result<(), NotPositiveDefinite> {
         self.factorize_with(values, None).map(|_| ())
     }
@@ -449,6 +456,10 @@ impl SparseCholesky {
     /// while each supernode's values are still in cache (one pass over L
     /// fewer). [`Self::finish_solve`] on the same `rhs` completes it; after
     /// an error `rhs` holds nothing useful.
+    ///
+    /// # Panics
+    ///
+    /// As [`Self::factorize`].
     pub fn factorize_and_begin_solve(
         &mut self,
         values: &[f64],
@@ -474,6 +485,11 @@ impl SparseCholesky {
         values: &[f64],
         forward: Option<&mut [f64]>,
     ) -> Result<bool, NotPositiveDefinite> {
+        assert_eq!(
+            values.len(),
+            self.nnz,
+            "H's values do not match the layout the factor was analysed for"
+        );
         self.factored = false;
         let forwarded = match &mut self.factor {
             Factor::Simplicial(s) => s.factorize(values).map(|()| false)?,

@@ -47,3 +47,36 @@ fn schur_order_puts_isolated_landmarks_first() {
     sorted.sort_unstable();
     assert_eq!(sorted, (0..7).collect::<Vec<_>>());
 }
+
+/// Values of another length than the analysed layout's are refused before
+/// any factorisation reads them, for every kind of factor.
+#[test]
+fn values_of_the_wrong_length_are_refused() {
+    use crate::hessian_layout::HessianLayout;
+    let blocks = pattern(3, &[(0, 1), (1, 2)]);
+    let usize_pattern = SymbolicSparseColMat::new_checked(
+        3,
+        3,
+        blocks.col_ptr().iter().map(|&p| p as usize).collect(),
+        None,
+        blocks.row_idx().iter().map(|&r| r as usize).collect(),
+    );
+    let layout = HessianLayout::new(usize_pattern, vec![3, 3, 2]).unwrap();
+    for (factorization, ordering) in [
+        (Factorization::Simplicial, Ordering::BlockAmd),
+        (Factorization::Supernodal, Ordering::BlockAmd),
+        (Factorization::Auto, Ordering::Amd),
+    ] {
+        let config = LinearSolverConfig {
+            factorization,
+            ordering,
+            parallel: false,
+        };
+        let mut cholesky = SparseCholesky::analyze(&layout, &config).unwrap();
+        let short = vec![1.0; layout.nnz() - 1];
+        let refused = std::panic::catch_unwind(std::panic::AssertUnwindSafe(|| {
+            let _ = cholesky.factorize(&short);
+        }));
+        assert!(refused.is_err(), "{factorization:?} {ordering:?}");
+    }
+}
