@@ -164,12 +164,8 @@ pub struct SimplicialCholesky {
     work: Vec<f64>,
     /// Position in `values` of the last value written in each column.
     last: Vec<usize>,
-    /// H's layout: where each scalar column's values start, and for each
-    /// block column the block rows above its diagonal block
-    /// (`h_rows[h_block_ptr[c]..h_block_ptr[c + 1]]`).
-    h_col_ptr: Vec<usize>,
-    h_block_ptr: Vec<usize>,
-    h_rows: Vec<u32>,
+    /// H's layout, through which the factorisation reads H's columns.
+    layout: HessianLayout,
 }
 
 impl SimplicialCholesky {
@@ -196,22 +192,10 @@ impl SimplicialCholesky {
                 }
             }
         }
-        let (block_ptr, block_rows) = (layout.blocks().col_ptr(), layout.blocks().row_idx());
-        let mut h_block_ptr = Vec::with_capacity(block_ptr.len());
-        let mut h_rows = Vec::with_capacity(block_rows.len());
-        h_block_ptr.push(0);
-        for c in 0..block_ptr.len() - 1 {
-            // The diagonal block comes last: all but it.
-            let above = &block_rows[block_ptr[c]..block_ptr[c + 1] - 1];
-            h_rows.extend(above.iter().map(|&r| r as u32));
-            h_block_ptr.push(h_rows.len());
-        }
         Some(Self {
             values: vec![0.0; row_idx.len()],
             row_idx,
-            h_col_ptr: layout.col_ptr().to_vec(),
-            h_block_ptr,
-            h_rows,
+            layout: layout.clone(),
             inverse_diagonal: vec![0.0; n],
             // Up to 6 rows formed at once.
             work: vec![0.0; 6 * n],
@@ -367,11 +351,14 @@ impl SimplicialCholesky {
     /// into `work[i·stride + r]`. Its rows are those of the blocks above
     /// the diagonal block, then the diagonal block's down to j.
     fn scatter_column(&mut self, h: &[f64], kb: usize, j: usize, stride: usize, r: usize) {
-        let s = &self.symbolic;
-        let mut values = &h[self.h_col_ptr[j]..self.h_col_ptr[j + 1]];
-        let above = &self.h_rows[self.h_block_ptr[kb]..self.h_block_ptr[kb + 1]];
-        let rows = above.iter().map(|&b| s.rows(b));
-        for rows in rows.chain(std::iter::once(s.block_column[kb]..j + 1)) {
+        let (s, col_ptr) = (&self.symbolic, self.layout.col_ptr());
+        let mut values = &h[col_ptr[j]..col_ptr[j + 1]];
+        // The blocks above the diagonal block, which comes last.
+        let blocks = self.layout.blocks().row_idx_of_col_raw(kb);
+        let above = blocks[..blocks.len() - 1]
+            .iter()
+            .map(|&b| self.layout.columns(b));
+        for rows in above.chain(std::iter::once(s.block_column[kb]..j + 1)) {
             let (block, rest) = values.split_at(rows.len());
             for (i, &v) in rows.zip(block) {
                 self.work[i * stride + r] += v;
