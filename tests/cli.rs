@@ -357,3 +357,81 @@ fn lm_damping_and_tau_are_chosen_on_the_command_line() {
         assert!(!o.status.success() && stderr(&o).contains("--tau"), "{bad}");
     }
 }
+
+#[test]
+fn gn_stops_on_a_rise_when_asked() {
+    // A loop of 60 poses, 1 m apart, with exact odometry and closures every
+    // three poses; the headings start up to 2.6 rad off, which makes GN's
+    // fourth step climb eightfold before it descends below where it was.
+    let dir = temp_dir("rise");
+    let (input, output) = (dir.join("loop.g2o"), dir.join("out.g2o"));
+    let n = 60;
+    let turn = 2.0 * std::f64::consts::PI / n as f64;
+    let (mut text, mut pose) = (String::new(), (0.0f64, 0.0f64, 0.0f64));
+    for i in 0..n {
+        let off = if i == 0 {
+            0.0
+        } else {
+            2.6 * ((i * 5 % 23) as f64 / 11.0 - 1.0)
+        };
+        text += &format!("VERTEX_SE2 {i} {} {} {}\n", pose.0, pose.1, pose.2 + off);
+        pose = (pose.0 + pose.2.cos(), pose.1 + pose.2.sin(), pose.2 + turn);
+    }
+    let info = "100 0 0 100 0 1000";
+    for i in 0..n {
+        text += &format!("EDGE_SE2 {i} {} 1 0 {turn} {info}\n", (i + 1) % n);
+        if i + 3 < n {
+            // Three steps of (1 m, turn): the chord and its direction.
+            let (mut x, mut y, mut t) = (0.0f64, 0.0f64, 0.0f64);
+            for _ in 0..3 {
+                (x, y, t) = (x + t.cos(), y + t.sin(), t + turn);
+            }
+            text += &format!("EDGE_SE2 {i} {} {x} {y} {t} {info}\n", i + 3);
+        }
+    }
+    std::fs::write(&input, text).unwrap();
+    let solve = |extra: &[&str]| {
+        let mut args = vec!["solve", s(&input), "--init", "file", "--json", "-q"];
+        args.extend_from_slice(extra);
+        let o = cairn(&args);
+        assert!(o.status.success(), "{extra:?}: {}", stderr(&o));
+        let json: serde_json::Value = serde_json::from_slice(&o.stdout).unwrap();
+        json["summary"].clone()
+    };
+    let chi2s = |summary: &serde_json::Value| -> Vec<f64> {
+        let trace = summary["trace"].as_array().unwrap();
+        let mut chi2 = vec![summary["initial_chi2"].as_f64().unwrap()];
+        chi2.extend(trace.iter().map(|t| t["chi2"].as_f64().unwrap()));
+        chi2
+    };
+    let plain = solve(&[]);
+    let path = chi2s(&plain);
+    let rise = (1..path.len()).find(|&k| path[k] > path[k - 1]);
+    let rise = rise.expect("GN climbs from this start");
+    assert!(
+        plain["final_chi2"].as_f64().unwrap() < path[rise - 1],
+        "{plain}"
+    );
+
+    let stopped = solve(&["--stop-on-increase", "-o", s(&output)]);
+    assert_eq!(stopped["termination"], "ErrorIncreased");
+    assert_eq!(chi2s(&stopped), path[..=rise]);
+    let kept = stopped["final_chi2"].as_f64().unwrap();
+    assert_eq!(kept, path[rise - 1]);
+    let (written, _) = cairn::g2o::read_file(&output, &Default::default()).unwrap();
+    assert!(
+        (written.chi2() - kept).abs() <= 1e-9 * kept,
+        "{}",
+        written.chi2()
+    );
+
+    let o = cairn(&[
+        "solve",
+        s(&input),
+        "--solver",
+        "lm",
+        "--stop-on-increase",
+        "-q",
+    ]);
+    assert!(!o.status.success() && stderr(&o).contains("--stop-on-increase"));
+}

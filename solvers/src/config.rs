@@ -194,6 +194,13 @@ pub struct SolverConfig {
     pub max_iterations: usize,
     /// Stop when an iteration lowers χ² by less than this fraction. Default 1e-7.
     pub relative_decrease: f64,
+    /// Gauss-Newton: stop at the first step that raises χ², keeping the
+    /// estimate before it ([`Termination::ErrorIncreased`]). GTSAM's
+    /// Gauss-Newton stops there too (keeping the step). Default false: GN
+    /// carries on, as g2o's does, which is what reaches the optimum on
+    /// graphs whose first steps overshoot (M3500b, torus3D).
+    #[serde(default)]
+    pub stop_on_increase: bool,
     /// Stop when the largest gradient component |JᵀΩe| is below this. Default 1e-10.
     pub gradient_tolerance: f64,
     /// Stop when the largest step component is below this × (1 + largest
@@ -225,6 +232,7 @@ impl Default for SolverConfig {
             algorithm: Algorithm::default(),
             max_iterations: 100,
             relative_decrease: 1e-7,
+            stop_on_increase: false,
             gradient_tolerance: 1e-10,
             step_tolerance: 1e-12,
             lm: LevenbergMarquardtConfig::default(),
@@ -253,6 +261,9 @@ pub enum Termination {
     NotPositiveDefinite,
     /// χ² became NaN or infinite after a GN step; the estimate is the last one.
     NonFinite,
+    /// GN with `stop_on_increase`: a step raised χ²; the estimate is the
+    /// one before it.
+    ErrorIncreased,
     /// Every vertex is fixed: nothing to optimise.
     NothingToOptimize,
 }

@@ -415,16 +415,17 @@ impl Optimizer {
             self.save(graph);
             self.apply_step(graph);
             phases.update += since(t);
-            // H is not needed again: the new point's replaces it (on more
-            // than one thread it is assembled below unless this was the
-            // last iteration).
-            let new_chi2 = self.linearize_trial(graph, &mut phases, false);
+            // H is not needed again unless the step may be taken back: the
+            // new point's replaces it (on more than one thread it is
+            // assembled below unless this was the last iteration).
+            let keep_current = self.config.stop_on_increase;
+            let new_chi2 = self.linearize_trial(graph, &mut phases, keep_current);
             if !new_chi2.is_finite() {
                 self.restore(graph);
                 self.linearize(graph, &mut phases);
                 return Termination::NonFinite;
             }
-            let stats = IterationStats {
+            let mut stats = IterationStats {
                 iteration,
                 trials: 1,
                 gradient_max,
@@ -432,6 +433,17 @@ impl Optimizer {
                 ..Default::default()
             };
             let clock = (began, start);
+            // (A step too small to count is no rise: χ² ≈ 0 goes up and down
+            // in its last bits.)
+            if self.config.stop_on_increase && new_chi2 > chi2 && !self.step_is_small(graph) {
+                // Back to the estimate before the step; H is still its own.
+                self.restore(graph);
+                self.pending = Pending::Nothing;
+                stats.chi2 = new_chi2;
+                stats.step_max = max_abs(&self.step);
+                record(stats, began, start, summary, on_iteration);
+                return Termination::ErrorIncreased;
+            }
             if let Some(end) =
                 self.end_iteration(graph, chi2, new_chi2, stats, clock, summary, on_iteration)
             {

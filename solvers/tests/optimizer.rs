@@ -382,6 +382,97 @@ fn dogleg_radius_shrinks_on_a_bad_start_and_never_accepts_an_increase() {
 }
 
 #[test]
+fn gn_asked_to_stop_on_a_rise_stops_there_and_keeps_the_estimate_before_it() {
+    // Headings scrambled: GN climbs at its sixth step, then reaches the
+    // exact optimum.
+    let scrambled = || {
+        let mut g = noisy_loop(60, 0);
+        let mut rng = StdRng::seed_from_u64(100);
+        for i in 1..60 {
+            let x: SE2 = g.value(i).unwrap();
+            let theta = x.theta + 2.0 * rng.random_range(-1.0..1.0);
+            g.set_value(i, &SE2::new(x.t.x, x.t.y, theta)).unwrap();
+        }
+        g
+    };
+    // Unasked, GN carries on through its first rise (g2o's rule).
+    let plain = optimize(&mut scrambled(), config(Algorithm::GaussNewton)).unwrap();
+    let chi2_before = |k: usize| match k {
+        0 => plain.initial_chi2,
+        _ => plain.trace[k - 1].chi2,
+    };
+    let rise = (0..plain.iterations)
+        .find(|&k| plain.trace[k].chi2 > chi2_before(k))
+        .expect("this start makes GN overshoot");
+    assert!(plain.termination.converged() && plain.final_chi2 < 1e-12);
+
+    // Asked, on one thread and on two (linearising into the parallel buffer).
+    let stopped = |threads: usize| {
+        let pool = rayon::ThreadPoolBuilder::new()
+            .num_threads(threads)
+            .build()
+            .unwrap();
+        pool.install(|| {
+            let mut g = scrambled();
+            let cfg = SolverConfig {
+                stop_on_increase: true,
+                parallel_min_values: if threads > 1 { 0 } else { usize::MAX },
+                ..config(Algorithm::GaussNewton)
+            };
+            let s = optimize(&mut g, cfg).unwrap();
+            (s, g)
+        })
+    };
+    let (s, g) = stopped(1);
+    let (s2, g2) = stopped(2);
+    assert_eq!(g.values().params(), g2.values().params());
+    assert_eq!(s.final_chi2.to_bits(), s2.final_chi2.to_bits());
+    assert_eq!(s.iterations, s2.iterations);
+    assert_eq!(s.termination, Termination::ErrorIncreased);
+    assert!(!s.termination.converged());
+    assert_eq!(s.iterations, rise + 1);
+    for k in 0..=rise {
+        assert_eq!(s.trace[k].chi2, plain.trace[k].chi2, "iteration {k}");
+    }
+    // The rise is in the trace; the estimate is the one before it.
+    assert_eq!(s.final_chi2, chi2_before(rise));
+    assert_eq!(g.chi2(), s.final_chi2);
+}
+
+#[test]
+fn gn_asked_to_stop_on_a_rise_ignores_rounding_at_the_optimum() {
+    // Consistent loops solved to χ² ≈ 1e-26, then solved again: from there
+    // χ² moves in its last bits, up or down. That is convergence, not a rise.
+    let mut rises = 0;
+    for seed in 0..20 {
+        let solved = || {
+            let mut g = noisy_loop(40, seed);
+            optimize(&mut g, config(Algorithm::GaussNewton)).unwrap();
+            g
+        };
+        // (No gradient test, which would stop both runs before a step.)
+        let plain = SolverConfig {
+            gradient_tolerance: 0.0,
+            ..config(Algorithm::GaussNewton)
+        };
+        let again = optimize(&mut solved(), plain).unwrap();
+        rises += usize::from(again.trace[0].chi2 > again.initial_chi2);
+        let cfg = SolverConfig {
+            stop_on_increase: true,
+            ..plain
+        };
+        let s = optimize(&mut solved(), cfg).unwrap();
+        assert!(
+            s.termination.converged(),
+            "seed {seed}: {:?}",
+            s.termination
+        );
+        assert!(s.final_chi2 < 1e-12, "seed {seed}: {}", s.final_chi2);
+    }
+    assert!(rises > 0, "some of the loops go up in their last bits");
+}
+
+#[test]
 fn chordal_initialisation_recovers_noise_free_graphs_exactly() {
     use cairn_core::{EdgeSE3, SE3};
     use cairn_solvers::{ChordalWeights, chordal_initialize_with};

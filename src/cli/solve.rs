@@ -113,6 +113,11 @@ pub struct SolveArgs {
     /// Stop when χ² falls by less than this fraction in an iteration.
     #[arg(long, default_value_t = SolverConfig::default().relative_decrease)]
     relative_decrease: f64,
+    /// Gauss-Newton: stop at the first step that raises χ² and keep the
+    /// estimate before it (GTSAM's Gauss-Newton stops there too, keeping the
+    /// step). Without it GN carries on, as g2o's does.
+    #[arg(long)]
+    stop_on_increase: bool,
     /// Replace information matrices that are not positive definite by the
     /// nearest positive-definite ones (cubicle.g2o needs this) instead of refusing.
     #[arg(long)]
@@ -345,6 +350,12 @@ fn solve(a: SolveArgs) -> Result<(), String> {
     if !(tau > 0.0 && tau.is_finite()) {
         return Err("--tau must be positive and finite".into());
     }
+    if a.stop_on_increase && !matches!(a.solver, SolverName::Gn) {
+        return Err(
+            "--stop-on-increase is for --solver gn: LM and dogleg control their steps themselves"
+                .into(),
+        );
+    }
     let config = SolverConfig {
         algorithm: match a.solver {
             SolverName::Gn => Algorithm::GaussNewton,
@@ -353,6 +364,7 @@ fn solve(a: SolveArgs) -> Result<(), String> {
         },
         max_iterations: a.iterations,
         relative_decrease: a.relative_decrease,
+        stop_on_increase: a.stop_on_increase,
         lm: LevenbergMarquardtConfig {
             tau,
             nonmonotonic_steps: a.nonmonotonic_steps.unwrap_or(lm.nonmonotonic_steps),
