@@ -17,6 +17,7 @@ numpy):
       [--peers gtsam,g2o,apex,tiny,factrs] [--algos gn,lm] [--threads 1]
   scripts/bench.py --render                      # redraw the tables from docs/bench/suite.jsonl
   scripts/bench.py --replace --only FRH          # rerun some files, keep the other runs
+  scripts/bench.py --stop-rule ...               # also Cairn's GN with --stop-on-increase
 
 Without a set-up harness (no .venv or peers-rust) it runs Cairn alone.
 """
@@ -62,15 +63,16 @@ def run_peer(peers_dir, lib, algo, path, env, timeout):
     return json.loads(lines[-1])
 
 
-def run_cairn(cairn, algo, path, threads, env, timeout, scorer, repair=False):
-    """One `cairn solve`. A file whose information matrices are indefinite
-    (cubicle) is refused, and solved again with them repaired; the harness
-    scores the estimate with the file's own information, as the peers'."""
+def run_cairn(cairn, algo, path, threads, env, timeout, scorer, repair=False, extra=()):
+    """One `cairn solve` (with `extra` arguments). A file whose information
+    matrices are indefinite (cubicle) is refused, and solved again with them
+    repaired; the harness scores the estimate with the file's own
+    information, as the peers'."""
     with tempfile.TemporaryDirectory() as tmp:
         out = os.path.join(tmp, "out.g2o")
         command = [cairn, "solve", path, "--init", "file", "--solver", algo, "-i", "100",
                    "--relative-decrease", "1e-5", "--threads", str(threads), "--json", "-q",
-                   "-o", out] + (["--repair-information"] if repair else [])
+                   "-o", out] + (["--repair-information"] if repair else []) + list(extra)
         t0 = time.perf_counter()
         try:
             p = subprocess.run(command, capture_output=True, text=True, env=env, timeout=timeout)
@@ -79,7 +81,7 @@ def run_cairn(cairn, algo, path, threads, env, timeout, scorer, repair=False):
         wall = time.perf_counter() - t0
         if p.returncode != 0:
             if "not positive definite" in p.stderr and not repair:
-                return run_cairn(cairn, algo, path, threads, env, timeout, scorer, repair=True)
+                return run_cairn(cairn, algo, path, threads, env, timeout, scorer, True, extra)
             return dict(status="error", error=p.stderr[-300:])
         d = json.loads(p.stdout)
         s = d["summary"]
@@ -197,6 +199,27 @@ def render(table, files, algos, peers):
     return "\n".join(lines)
 
 
+def render_stop_rule(table, files):
+    """Cairn's GN under GTSAM's stopping rule (`--stop-on-increase`,
+    library `cairn-stop`) against GTSAM's GN."""
+    lines = ["| dataset | Cairn it | Cairn solve | Cairn χ² | GTSAM it | GTSAM solve | GTSAM χ² "
+             "| ratio | χ² ok |", "|---|---:|---:|---:|---:|---:|---:|---:|---|"]
+    for f in files:
+        c, g = table.get((f, "gn", "cairn-stop")), table.get((f, "gn", "gtsam"))
+        if not c or c.get("solve_s") is None:
+            continue
+        name = f[:-4] + (" (repaired)" if c.get("repaired") else "")
+        cells = [name, str(c["iterations"]), fmt_time(c["solve_s"]), f"{c['chi2']:.6f}"]
+        if g and g.get("solve_s") is not None:
+            cells += [str(g["iterations"]), fmt_time(g["solve_s"]), f"{g['chi2']:.6f}",
+                      f"{c['solve_s'] / g['solve_s']:.2f}",
+                      "yes" if no_worse(c["chi2"], g["chi2"]) else "**no**"]
+        else:
+            cells += [(g or {}).get("status") or "–"] + ["–"] * 4
+        lines.append("| " + " | ".join(cells) + " |")
+    return "\n".join(lines)
+
+
 def render_process(table, files):
     """Whole `cairn solve` process (parse + solve + write), GN, against g2o's
     load + solve."""
@@ -270,6 +293,9 @@ def main():
                     help="only redraw the tables from the runs already in --jsonl")
     ap.add_argument("--replace", action="store_true",
                     help="rerun --only's files and replace their runs in --jsonl")
+    ap.add_argument("--stop-rule", action="store_true",
+                    help="also run Cairn's GN with --stop-on-increase (GTSAM's stopping rule), "
+                         "recorded as library cairn-stop")
     a = ap.parse_args()
 
     data = os.path.join(a.peers_dir, "data")
@@ -298,7 +324,7 @@ def main():
     if a.render or a.replace:
         kept = [json.loads(line) for line in open(a.jsonl)]
         kept = [r for r in kept if a.render or r["file"] not in files or r["algo"] not in algos
-                or r["lib"] not in ["cairn"] + peers]
+                or r["lib"] not in ["cairn", "cairn-stop"] + peers]
     # The peers run now, and the peers in the tables (those run now or kept).
     shown = [p for p in PEERS_ALL
              if (p in peers and not a.render) or any(r["lib"] == p for r in kept)]
@@ -311,9 +337,13 @@ def main():
             path = os.path.join(data, f)
             for algo in algos:
                 for rep in range(a.reps):
-                    for lib in ["cairn"] + peers:
+                    stop = ["cairn-stop"] if a.stop_rule and algo == "gn" else []
+                    for lib in ["cairn"] + stop + peers:
                         if lib == "cairn":
                             rec = run_cairn(a.cairn, algo, path, a.threads, env, a.timeout, scorer)
+                        elif lib == "cairn-stop":
+                            rec = run_cairn(a.cairn, algo, path, a.threads, env, a.timeout, scorer,
+                                            extra=["--stop-on-increase"])
                         else:
                             t0 = time.perf_counter()
                             rec = run_peer(a.peers_dir, lib, algo, path, env, a.timeout)
@@ -332,9 +362,11 @@ def main():
     suite = render(table, files, algos, shown)
     process = render_process(table, files)
     phases = render_phases(rows, files)
-    print(suite, process, phases, sep="\n\n")
+    stop_rule = render_stop_rule(table, files)
+    print(suite, stop_rule, process, phases, sep="\n\n")
     if a.doc:
         write_section(a.doc, "suite", suite)
+        write_section(a.doc, "stop-rule", stop_rule)
         write_section(a.doc, "process", process)
         write_section(a.doc, "phases", phases)
 
