@@ -6,6 +6,7 @@ use nalgebra::Vector2;
 use plotters::coord::Shift;
 use plotters::prelude::*;
 use std::path::Path;
+use std::sync::OnceLock;
 
 /// What to draw; empty parts are left out.
 #[derive(Default)]
@@ -32,8 +33,27 @@ fn rgb(color: ConeColor) -> RGBColor {
     }
 }
 
+/// The plots' text font: Ubuntu Light, compiled in, so that drawing needs no
+/// font from the system (nor fontconfig or freetype to find and render one).
+const FONT: &str = "sans-serif";
+
+/// Registers [`FONT`] with plotters, once.
+fn register_font() -> Result<(), String> {
+    static REGISTERED: OnceLock<bool> = OnceLock::new();
+    let ok = REGISTERED.get_or_init(|| {
+        let bytes = epaint_default_fonts::UBUNTU_LIGHT;
+        plotters::style::register_font(FONT, FontStyle::Normal, bytes).is_ok()
+    });
+    if *ok {
+        Ok(())
+    } else {
+        Err("the plots' compiled-in font does not load".into())
+    }
+}
+
 /// Writes the plot to `path` (`.png` for a bitmap, otherwise SVG).
 pub fn draw(plot: &MapPlot, path: &Path) -> Result<(), String> {
+    register_font()?;
     let size = (1000, 800);
     let is_png = path
         .extension()
@@ -84,7 +104,7 @@ where
         centre.y - half / 1.2..centre.y + half / 1.2,
     );
     let mut chart = ChartBuilder::on(&area)
-        .caption(&plot.title, ("sans-serif", 22))
+        .caption(&plot.title, (FONT, 22))
         .margin(10)
         .x_label_area_size(35)
         .y_label_area_size(45)
@@ -158,6 +178,7 @@ pub struct LinePlot<'a> {
 
 /// Writes a line plot to `path` (`.png` for a bitmap, otherwise SVG).
 pub fn draw_lines(plot: &LinePlot, path: &Path) -> Result<(), String> {
+    register_font()?;
     let size = (900, 560);
     let is_png = path
         .extension()
@@ -194,7 +215,7 @@ where
     }
     let y1 = if y1 > 0.0 { 1.1 * y1 } else { 1.0 };
     let mut chart = ChartBuilder::on(&area)
-        .caption(plot.title, ("sans-serif", 20))
+        .caption(plot.title, (FONT, 20))
         .margin(10)
         .x_label_area_size(40)
         .y_label_area_size(55)
@@ -227,4 +248,53 @@ where
         .draw()?;
     area.present()?;
     Ok(())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use cairn_slam::Color;
+
+    /// Both plots in both formats, text included, with nothing from the
+    /// system's fonts.
+    #[test]
+    fn plots_draw_as_svg_and_png() {
+        let dir = std::env::temp_dir().join(format!("cairn-plot-{}", std::process::id()));
+        std::fs::create_dir_all(&dir).unwrap();
+        let cones = [Cone {
+            position: Vector2::new(1.0, 2.0),
+            color: Color::Blue,
+            covariance: nalgebra::Matrix2::zeros(),
+        }];
+        let path = [Vector2::new(0.0, 0.0), Vector2::new(3.0, 1.0)];
+        let map = MapPlot {
+            title: "map".into(),
+            truth: &cones,
+            map: &cones,
+            true_path: &path,
+            path: &path,
+        };
+        let series = [("errors".to_string(), vec![(0.0, 1.0), (1.0, 0.5)])];
+        let lines = LinePlot {
+            title: "lines",
+            x_desc: "x",
+            y_desc: "y",
+            series: &series,
+        };
+        for ext in ["svg", "png"] {
+            let (a, b) = (
+                dir.join(format!("map.{ext}")),
+                dir.join(format!("lines.{ext}")),
+            );
+            draw(&map, &a).unwrap();
+            draw_lines(&lines, &b).unwrap();
+            for file in [a, b] {
+                let bytes = std::fs::read(&file).unwrap();
+                assert!(bytes.len() > 1000, "{}", file.display());
+            }
+        }
+        let svg = std::fs::read_to_string(dir.join("map.svg")).unwrap();
+        assert!(svg.contains("mapped cone") && svg.contains("x (m)"));
+        std::fs::remove_dir_all(&dir).unwrap();
+    }
 }
