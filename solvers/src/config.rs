@@ -321,7 +321,9 @@ impl PhaseTimes {
 pub struct IterationStats {
     /// Iteration number, from 0.
     pub iteration: usize,
-    /// χ² after the iteration.
+    /// χ² after the iteration. For the step that ends GN with
+    /// [`Termination::ErrorIncreased`], the χ² that step reached (the
+    /// estimate returned is the one before it).
     pub chi2: f64,
     /// λ after the iteration (LM only).
     pub lambda: Option<f64>,
@@ -331,7 +333,8 @@ pub struct IterationStats {
     pub trials: usize,
     /// Largest absolute gradient component at the linearisation point.
     pub gradient_max: f64,
-    /// Largest absolute component of the accepted step (0 if none).
+    /// Largest absolute component of the accepted step (0 if none; for
+    /// GN's step that raised χ² and ended it, that step's).
     pub step_max: f64,
     /// Seconds of this iteration.
     pub time: f64,
