@@ -4,6 +4,7 @@
 
 use super::fs_eval::plot_run;
 use super::fs_targets::{Summary, TrackSummary, targets_section};
+use super::progress::Progress;
 use cairn::slam::Track;
 use cairn::slam::course::Course;
 use cairn::slam::estimator::EstimatorKind;
@@ -67,6 +68,7 @@ pub fn run(a: ReportArgs) -> Result<(), String> {
         }
     }
     eprintln!("{} runs on {} tracks…", jobs.len(), tracks.len());
+    let progress = Progress::new(jobs.len(), "runs");
     let runs: Vec<Run> = jobs
         .par_iter()
         .map(|(t, preset, method, seed)| {
@@ -83,8 +85,10 @@ pub fn run(a: ReportArgs) -> Result<(), String> {
                 FrontEndConfig::for_preset(preset, *method, EstimatorKind::Graph),
             );
             for warning in &report.warnings {
-                eprintln!("warning: {} seed {seed}: {warning}", tracks[*t].0.name);
+                let name = &tracks[*t].0.name;
+                progress.note(&format!("warning: {name} seed {seed}: {warning}"));
             }
+            progress.inc();
             Run {
                 track: *t,
                 preset: preset.name,
@@ -94,6 +98,7 @@ pub fn run(a: ReportArgs) -> Result<(), String> {
             }
         })
         .collect();
+    progress.finish();
 
     let plots_dir = a.out.with_extension("");
     std::fs::create_dir_all(&plots_dir).map_err(|e| format!("{}: {e}", plots_dir.display()))?;

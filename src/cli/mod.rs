@@ -7,6 +7,7 @@ mod fs_eval;
 mod fs_report;
 mod fs_targets;
 mod generate;
+mod progress;
 mod solve;
 mod study;
 mod study_sweeps;

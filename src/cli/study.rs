@@ -5,6 +5,7 @@
 //! covariance it assumes.
 
 use super::fs_report::load_tracks;
+use super::progress::Progress;
 use super::study_sweeps::{noise_study, particle_study, plot_in_report, rmse_by_distance};
 use cairn::plot::LinePlot;
 use cairn::slam::Track;
@@ -20,7 +21,6 @@ use clap::Args;
 use rayon::prelude::*;
 use std::fmt::Write as _;
 use std::path::PathBuf;
-use std::sync::atomic::{AtomicUsize, Ordering};
 
 /// Options of `cairn fs-study`.
 #[derive(Debug, Args)]
@@ -103,7 +103,7 @@ pub fn run(a: StudyArgs) -> Result<(), String> {
         }
     }
     eprintln!("{} runs on {} tracks…", jobs.len(), tracks.len());
-    let done = AtomicUsize::new(0);
+    let progress = Progress::new(jobs.len(), "runs");
     let runs: Vec<Run> = jobs
         .par_iter()
         .map(|(t, preset, kind, method, seed)| {
@@ -114,12 +114,10 @@ pub fn run(a: StudyArgs) -> Result<(), String> {
             builder.seed = *seed;
             let (slam, report) = run_estimator(&sim, &builder);
             for warning in &report.warnings {
-                eprintln!("warning: {} seed {seed}: {warning}", tracks[*t].0.name);
+                let name = &tracks[*t].0.name;
+                progress.note(&format!("warning: {name} seed {seed}: {warning}"));
             }
-            let n = done.fetch_add(1, Ordering::Relaxed) + 1;
-            if n.is_multiple_of(20) {
-                eprintln!("  {n}/{} runs", jobs.len());
-            }
+            progress.inc();
             Run {
                 track: *t,
                 preset: preset.name,
@@ -130,6 +128,7 @@ pub fn run(a: StudyArgs) -> Result<(), String> {
             }
         })
         .collect();
+    progress.finish();
 
     let plots = a.out.with_extension("");
     std::fs::create_dir_all(&plots).map_err(|e| format!("{}: {e}", plots.display()))?;

@@ -2,6 +2,7 @@
 //! detector noise.
 
 use super::fs_eval::plot_run;
+use super::progress::Progress;
 use super::study::simulate_on;
 use cairn::plot::{LinePlot, draw_lines};
 use cairn::slam::Track;
@@ -89,6 +90,7 @@ pub(super) fn particle_study(
             }
         }
     }
+    let progress = Progress::new(jobs.len(), "FastSLAM runs");
     let results: Vec<(EstimatorKind, usize, Report)> = jobs
         .par_iter()
         .map(|&(kind, n, seed)| {
@@ -98,9 +100,12 @@ pub(super) fn particle_study(
             );
             builder.particles = n;
             builder.seed = seed;
-            (kind, n, run_estimator(sim, &builder).1)
+            let report = run_estimator(sim, &builder).1;
+            progress.inc();
+            (kind, n, report)
         })
         .collect();
+    progress.finish();
     let _ = writeln!(
         md,
         "## FastSLAM against its particle count\n\n\
@@ -177,6 +182,7 @@ pub(super) fn noise_study(
         .iter()
         .flat_map(|&k| (0..seeds).map(move |s| (k, s)))
         .collect();
+    let progress = Progress::new(jobs.len(), "EKF runs");
     let results: Vec<(f64, Report, Report)> = jobs
         .par_iter()
         .map(|&(k, seed)| {
@@ -192,9 +198,11 @@ pub(super) fn noise_study(
             let with_truth = run_estimator(&sim, &known).1;
             let associated =
                 run_estimator(&sim, &EstimatorBuilder::new(EstimatorKind::Ekf, config)).1;
+            progress.inc();
             (k, with_truth, associated)
         })
         .collect();
+    progress.finish();
     let _ = writeln!(
         md,
         "## EKF-SLAM against its assumed measurement noise\n\n\
