@@ -19,6 +19,15 @@ fn config(algorithm: Algorithm) -> SolverConfig {
 mod common;
 use common::noisy_loop;
 
+/// Runs `f` in a pool of `threads` threads.
+fn on_threads<T: Send>(threads: usize, f: impl FnOnce() -> T + Send) -> T {
+    let pool = rayon::ThreadPoolBuilder::new()
+        .num_threads(threads)
+        .build()
+        .unwrap();
+    pool.install(f)
+}
+
 #[test]
 fn gn_lm_and_dogleg_close_a_consistent_loop() {
     for algorithm in [
@@ -176,11 +185,7 @@ fn everything_fixed_is_nothing_to_optimize() {
 #[test]
 fn results_do_not_depend_on_the_number_of_threads() {
     let run = |threads: usize, algorithm: Algorithm| {
-        let pool = rayon::ThreadPoolBuilder::new()
-            .num_threads(threads)
-            .build()
-            .unwrap();
-        pool.install(|| {
+        on_threads(threads, || {
             let mut g = noisy_loop(3000, 5);
             let config = SolverConfig {
                 parallel_min_values: 0,
@@ -408,11 +413,7 @@ fn gn_asked_to_stop_on_a_rise_stops_there_and_keeps_the_estimate_before_it() {
 
     // Asked, on one thread and on two (linearising into the parallel buffer).
     let stopped = |threads: usize| {
-        let pool = rayon::ThreadPoolBuilder::new()
-            .num_threads(threads)
-            .build()
-            .unwrap();
-        pool.install(|| {
+        on_threads(threads, || {
             let mut g = scrambled();
             let cfg = SolverConfig {
                 stop_on_increase: true,
