@@ -4,6 +4,7 @@
 //! - [`core`]: SE2/SE3, variables, edges and the factor graph;
 //! - [`solvers`]: Gauss-Newton and Levenberg-Marquardt over faer's sparse Cholesky;
 //! - [`g2o`]: the g2o file format;
+//! - [`slam`]: the cone-SLAM front end; [`fs_tools`]: importers of real recordings;
 //! - [`generate`]: synthetic benchmark graphs.
 //!
 //! ```
@@ -18,6 +19,7 @@
 //! ```
 
 pub use cairn_core as core;
+pub use cairn_fs_tools as fs_tools;
 pub use cairn_g2o as g2o;
 pub use cairn_slam as slam;
 pub use cairn_solvers as solvers;

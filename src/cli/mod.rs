@@ -4,6 +4,7 @@ mod check;
 mod corrupt;
 mod fs;
 mod fs_eval;
+mod fs_import;
 mod fs_report;
 mod fs_targets;
 mod generate;
@@ -42,6 +43,8 @@ enum Command {
     FsSlam(fs::SlamArgs),
     /// Score a cone-SLAM run against the simulation's truth.
     FsEval(fs_eval::EvalArgs),
+    /// Import a real recording as a log and its ground truth (FORMAT.md).
+    FsImport(fs_import::ImportArgs),
     /// Simulate, map and score every shared and some random tracks into a report.
     FsReport(fs_report::ReportArgs),
     /// Compare the estimators (graph, EKF-SLAM, FastSLAM 1.0/2.0) on simulated
@@ -59,6 +62,7 @@ pub fn run(cli: Cli) -> Result<(), String> {
         Command::FsSim(args) => fs::run_sim(args),
         Command::FsSlam(args) => fs::run_slam(args),
         Command::FsEval(args) => fs_eval::run_eval(args),
+        Command::FsImport(args) => fs_import::run(args),
         Command::FsReport(args) => fs_report::run(args),
         Command::FsStudy(args) => study::run(args),
     }

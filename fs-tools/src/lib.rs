@@ -1,0 +1,9 @@
+//! Tools around Cairn's cone-SLAM front end that a car does not run:
+//! importers that turn real landmark-SLAM recordings into the log and
+//! ground-truth files of `shared/fs/FORMAT.md`.
+//!
+//! - [`mrclam`]: the UTIAS Multi-Robot Cooperative Localization and Mapping
+//!   dataset (range/bearing landmark detections, commanded velocities, Vicon
+//!   ground truth).
+
+pub mod mrclam;
