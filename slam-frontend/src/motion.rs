@@ -5,7 +5,8 @@ use cairn_core::SE2;
 use nalgebra::{Matrix2, Matrix3, SMatrix};
 
 /// How odometry turns into a yaw rate.
-#[derive(Clone, Copy, Debug, PartialEq)]
+#[derive(Clone, Copy, Debug, PartialEq, serde::Serialize, serde::Deserialize)]
+#[serde(rename_all = "snake_case")]
 pub enum MotionModel {
     /// Speed and the measured yaw rate.
     Unicycle,

@@ -239,6 +239,44 @@ impl Sighting {
     }
 }
 
+/// Detections before the detector's rate of colourless readings is learnt.
+const COLOR_RATE_AFTER: u64 = 50;
+
+/// The detector's rate of `unknown` colours as the log shows it. A detector
+/// that gives no colour (a lidar, a camera that reads barcodes) says
+/// `unknown` of every object; colour is evidence, so such a reading must
+/// not count against a landmark. [`ColorRate::learn`] raises the assumed
+/// `color_unknown` to the rate seen in the log (never lowers it), which
+/// takes the weight out of `unknown` readings where they are the rule.
+#[derive(Clone, Copy, Debug)]
+pub struct ColorRate {
+    assumed: f64,
+    detections: u64,
+    unknown: u64,
+}
+
+impl ColorRate {
+    /// Starts from the assumed rate of `config`.
+    pub fn new(config: &FrontEndConfig) -> Self {
+        Self {
+            assumed: config.color_unknown,
+            detections: 0,
+            unknown: 0,
+        }
+    }
+
+    /// Counts a scan's detections and sets `config.color_unknown` to the
+    /// larger of the assumed rate and the rate seen so far.
+    pub fn learn(&mut self, cones: &[crate::log::Detection], config: &mut FrontEndConfig) {
+        self.detections += cones.len() as u64;
+        self.unknown += cones.iter().filter(|d| d.color == Color::Unknown).count() as u64;
+        if self.detections >= COLOR_RATE_AFTER {
+            let seen = self.unknown as f64 / self.detections as f64;
+            config.color_unknown = self.assumed.max(seen);
+        }
+    }
+}
+
 /// Whether a world point lies well inside the assumed field of view.
 pub fn in_view(config: &FrontEndConfig, pose_inverse: &SE2, point: &Vector2<f64>) -> bool {
     in_view_within(config, pose_inverse, point, ViewMargin::WHILE_MAPPING)

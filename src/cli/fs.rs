@@ -84,12 +84,20 @@ pub struct SlamArgs {
     /// Localise on this map (EUFS CSV) from the start, finding the initial alignment.
     #[arg(long)]
     map_in: Option<PathBuf>,
-    /// Data association: ml, scnn, jcbb or tracking.
-    #[arg(long, default_value = "tracking")]
-    association: String,
-    /// Motion model: unicycle (speed + yaw rate) or bicycle (speed + steering).
-    #[arg(long, default_value = "unicycle")]
-    motion: String,
+    /// Everything the estimators assume about the detector, the odometry and
+    /// the run, from a TOML file (`configs/` holds documented examples:
+    /// standard.toml, hard.toml, mrclam.toml). The options below override
+    /// single values; without it the settings follow `--noise`.
+    #[arg(long, value_name = "FILE.toml")]
+    config: Option<PathBuf>,
+    /// Data association: ml, scnn, jcbb or tracking (default: the config's,
+    /// tracking without one).
+    #[arg(long)]
+    association: Option<String>,
+    /// Motion model: unicycle (speed + yaw rate) or bicycle (speed + steering)
+    /// (default: the config's, unicycle without one).
+    #[arg(long)]
+    motion: Option<String>,
     /// Wheelbase for the bicycle model (m).
     #[arg(long, default_value_t = 1.55)]
     wheelbase: f64,
@@ -105,10 +113,11 @@ pub struct SlamArgs {
     /// Skip and count malformed log lines instead of stopping at the first.
     #[arg(long)]
     skip_bad: bool,
-    /// Assumed detector noise preset (`standard` or `hard`); the options
-    /// below override its parts.
-    #[arg(long, default_value = "standard")]
-    noise: String,
+    /// Assumed detector noise preset (`standard` or `hard`, the simulator's
+    /// presets, as configs/standard.toml and configs/hard.toml); the options
+    /// below override its parts. Not with `--config`.
+    #[arg(long, conflicts_with = "config")]
+    noise: Option<String>,
     /// Assumed range noise σ (m), the part that does not grow with range.
     #[arg(long)]
     range_sigma: Option<f64>,
@@ -129,9 +138,10 @@ pub struct SlamArgs {
     #[arg(long, default_value = "graph")]
     estimator: String,
     /// Odometry noise model: velocity (speed and yaw-rate σ) or
-    /// rot-trans-rot (Thrun's δrot1, δtrans, δrot2 with α₁…α₄).
-    #[arg(long, default_value = "velocity")]
-    odometry_noise: String,
+    /// rot-trans-rot (Thrun's δrot1, δtrans, δrot2 with α₁…α₄) (default: the
+    /// config's, velocity without one).
+    #[arg(long)]
+    odometry_noise: Option<String>,
     /// α₁,α₂,α₃,α₄ of the rot-trans-rot model.
     #[arg(long, value_delimiter = ',', num_args = 4)]
     alpha: Option<Vec<f64>>,
@@ -242,36 +252,9 @@ pub fn run_slam(a: SlamArgs) -> Result<(), String> {
     for (kind, n) in &log.unknown_types {
         eprintln!("{name}: {n} records of unknown type '{kind}' ignored");
     }
-    let association = AssociationMethod::by_name(&a.association)
-        .ok_or("--association must be ml, scnn, jcbb or tracking")?;
-    let mut preset = Preset::by_name(&a.noise).ok_or("--noise must be standard or hard")?;
-    describe_detector(&mut preset, &a)?;
     let kind = EstimatorKind::by_name(&a.estimator)
         .ok_or("--estimator must be graph, ekf, fastslam1 or fastslam2")?;
-    let mut config = FrontEndConfig::for_preset(&preset, association, kind);
-    config.motion = match a.motion.as_str() {
-        "unicycle" => MotionModel::Unicycle,
-        "bicycle" if a.wheelbase > 0.0 => MotionModel::Bicycle {
-            wheelbase: a.wheelbase,
-        },
-        _ => {
-            return Err(
-                "--motion must be unicycle or bicycle (with a positive --wheelbase)".into(),
-            );
-        }
-    };
-    config.localise_after_loop = !a.keep_mapping;
-    config.hindsight = !a.no_hindsight;
-    config.rot_trans_rot = match (a.odometry_noise.as_str(), &a.alpha) {
-        ("velocity", None) => None,
-        ("rot-trans-rot", None) => Some(DEFAULT_ALPHA),
-        ("rot-trans-rot", Some(alpha)) if alpha.iter().all(|v| *v >= 0.0 && v.is_finite()) => {
-            Some([alpha[0], alpha[1], alpha[2], alpha[3]])
-        }
-        ("velocity", Some(_)) => return Err("--alpha needs --odometry-noise rot-trans-rot".into()),
-        ("rot-trans-rot", Some(_)) => return Err("--alpha values must be finite and ≥ 0".into()),
-        _ => return Err("--odometry-noise must be velocity or rot-trans-rot".into()),
-    };
+    let config = slam_config(&a, kind)?;
     if a.particles == 0 {
         return Err("--particles must be positive".into());
     }
@@ -363,9 +346,77 @@ pub fn run_slam(a: SlamArgs) -> Result<(), String> {
     Ok(())
 }
 
-/// Replaces the parts of the preset's detector model that `a` gives.
-fn describe_detector(preset: &mut Preset, a: &SlamArgs) -> Result<(), String> {
-    let sensor = &mut preset.sensor;
+/// The estimators' settings: the `--config` file's, or those of the
+/// `--noise` preset, with the single values the options give.
+fn slam_config(a: &SlamArgs, kind: EstimatorKind) -> Result<FrontEndConfig, String> {
+    let association = match &a.association {
+        Some(name) => Some(
+            AssociationMethod::by_name(name)
+                .ok_or("--association must be ml, scnn, jcbb or tracking")?,
+        ),
+        None => None,
+    };
+    let mut config = match &a.config {
+        Some(path) => {
+            let mut config = FrontEndConfig::from_toml(&read_text(path)?)
+                .map_err(|e| format!("{}: {e}", path.display()))?;
+            describe_detector(&mut config, a)?;
+            config
+        }
+        None => {
+            let noise = a.noise.as_deref().unwrap_or("standard");
+            let preset = Preset::by_name(noise).ok_or("--noise must be standard or hard")?;
+            let method = association.unwrap_or(AssociationMethod::Tracking);
+            let mut config = FrontEndConfig::for_preset(&preset, method, kind);
+            describe_detector(&mut config, a)?;
+            config.gate = FrontEndConfig::preset_gate(kind, config.false_positives);
+            config
+        }
+    };
+    if let Some(method) = association {
+        config.association = method;
+    }
+    config.motion = match (a.motion.as_deref(), config.motion) {
+        (None, motion) => motion,
+        (Some("unicycle"), _) => MotionModel::Unicycle,
+        (Some("bicycle"), _) if a.wheelbase > 0.0 && a.wheelbase.is_finite() => {
+            MotionModel::Bicycle {
+                wheelbase: a.wheelbase,
+            }
+        }
+        _ => {
+            return Err(
+                "--motion must be unicycle or bicycle (with a positive --wheelbase)".into(),
+            );
+        }
+    };
+    if a.keep_mapping {
+        config.localise_after_loop = false;
+    }
+    if a.no_hindsight {
+        config.hindsight = false;
+    }
+    let noise = a.odometry_noise.as_deref();
+    if !matches!(noise, None | Some("velocity" | "rot-trans-rot")) {
+        return Err("--odometry-noise must be velocity or rot-trans-rot".into());
+    }
+    let alpha = match &a.alpha {
+        Some(v) if v.iter().all(|x| x.is_finite() && *x >= 0.0) => Some([v[0], v[1], v[2], v[3]]),
+        Some(_) => return Err("--alpha values must be finite and ≥ 0".into()),
+        None => None,
+    };
+    let rot_trans_rot = noise == Some("rot-trans-rot") || (noise.is_none() && config.rot_trans_rot.is_some());
+    config.rot_trans_rot = match (rot_trans_rot, alpha) {
+        (false, Some(_)) => return Err("--alpha needs --odometry-noise rot-trans-rot".into()),
+        (false, None) => None,
+        (true, Some(alpha)) => Some(alpha),
+        (true, None) => Some(config.rot_trans_rot.unwrap_or(DEFAULT_ALPHA)),
+    };
+    Ok(config)
+}
+
+/// Replaces the parts of the detector model that `a` gives.
+fn describe_detector(sensor: &mut FrontEndConfig, a: &SlamArgs) -> Result<(), String> {
     let positive = |v: f64| v.is_finite() && v > 0.0;
     let non_negative = |v: f64| v.is_finite() && v >= 0.0;
     let probability = |v: f64| v > 0.0 && v <= 1.0;

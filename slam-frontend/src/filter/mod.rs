@@ -16,7 +16,7 @@ use crate::frontend::association::{Candidates, Correlation, Pair, associate};
 use crate::frontend::{FrontEndConfig, Mode, Timing, chi2_99};
 use crate::log::{Detection, Record};
 use crate::motion::Odometry;
-use crate::sighting::{Sighting, near_start};
+use crate::sighting::{ColorRate, Sighting, near_start};
 use crate::track::Cone;
 use cairn_core::SE2;
 use cairn_core::se2::normalize_angle;
@@ -134,12 +134,14 @@ struct Run {
     unplaced: Option<Vec<(Vector2<f64>, Color)>>,
     /// The pose of the first scan, where a lap ends.
     first_pose: Option<SE2>,
+    colors: ColorRate,
 }
 
 impl Run {
     fn new(config: FrontEndConfig) -> Self {
         Self {
             motion: Odometry::new(config.motion, config.motion_noise()),
+            colors: ColorRate::new(&config),
             config,
             mode: Mode::Mapping,
             started: false,
@@ -213,6 +215,7 @@ impl Run {
             }
             Record::Cones { t, cones } => {
                 self.motion.advance(*t, (1.0, 0.0));
+                self.colors.learn(cones, &mut self.config);
                 self.started = true;
                 Some((*t, cones))
             }

@@ -10,18 +10,22 @@ use jcbb::jcbb;
 use nalgebra::{Matrix2, SMatrix, Vector2};
 
 /// How detections are matched to landmarks.
-#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, serde::Serialize, serde::Deserialize)]
 pub enum AssociationMethod {
     /// Maximum likelihood with individual-compatibility gating: the most
     /// likely pairs first, each landmark used once.
+    #[serde(rename = "ml")]
     MaximumLikelihood,
     /// Sequential compatibility nearest neighbour: detections in scan order,
     /// each takes its nearest compatible landmark still free.
+    #[serde(rename = "scnn")]
     Sequential,
     /// Joint compatibility branch and bound (Neira & Tardós 2001).
+    #[serde(rename = "jcbb")]
     Jcbb,
     /// The tracker's ids first (checked by Bhattacharyya distance), then
     /// maximum likelihood for the rest.
+    #[serde(rename = "tracking")]
     Tracking,
 }
 

@@ -17,14 +17,14 @@ mod loop_closure;
 mod optimise;
 mod window;
 pub use calibration::Calibration;
-pub use config::FrontEndConfig;
+pub use config::{ConfigError, FrontEndConfig};
 use edges::{OdometryEdge, nearest_information, odometry_information};
 pub(crate) use optimise::MERGE_RADIUS;
 
 use crate::files::{Association, StampedPose};
 use crate::log::{Detection, Record};
 use crate::motion::{Odometry, compose_with_cov};
-use crate::sighting::{MIN_LOOP, Sighting};
+use crate::sighting::{ColorRate, MIN_LOOP, Sighting};
 use crate::track::Cone;
 use association::{Correlation, associate};
 use cairn_core::SE2;
@@ -116,12 +116,14 @@ pub struct GraphSlam {
     /// (a few kB per second of driving).
     scan_log: Vec<loop_closure::PendingScan>,
     warnings: Vec<String>,
+    colors: ColorRate,
 }
 
 impl GraphSlam {
     /// A front end that starts mapping at the origin (or the log's `start`).
     pub fn new(config: FrontEndConfig) -> Self {
         let window = window::Window::new(config.yaw_rate_sigma);
+        let colors = ColorRate::new(&config);
         Self {
             motion: Odometry::new(config.motion, config.motion_noise()),
             config,
@@ -146,6 +148,7 @@ impl GraphSlam {
             near_start_scans: Vec::new(),
             scan_log: Vec::new(),
             warnings: Vec::new(),
+            colors,
         }
     }
 
@@ -275,6 +278,7 @@ impl GraphSlam {
     }
 
     fn update(&mut self, t: f64, cones: &[Detection]) {
+        self.colors.learn(cones, &mut self.config);
         let scan = self.scans;
         self.scans += 1;
         if !self.aligned && !self.align_to_map(cones) {

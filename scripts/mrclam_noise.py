@@ -1,0 +1,115 @@
+#!/usr/bin/env python3
+"""Measure the MRCLAM robots' sensor and odometry errors against Vicon.
+
+Usage: python3 scripts/mrclam_noise.py ../shared/real/mrclam/MRCLAM_Dataset6
+
+For every landmark detection with a readable barcode, the range and bearing
+the Vicon pose and landmark predict are compared with the measured ones; the
+commanded velocities are compared with the Vicon poses' motion over 1 s.
+Prints robust spreads (1.4826·MAD) and tail fractions, per range band. These
+are the numbers behind configs/mrclam.toml.
+"""
+import bisect
+import math
+import os
+import statistics
+import sys
+
+
+def table(path):
+    rows = []
+    with open(path) as f:
+        for line in f:
+            line = line.strip()
+            if line and not line.startswith("#"):
+                rows.append([float(x) for x in line.split()])
+    return rows
+
+
+def wrap(a):
+    return (a + math.pi) % (2 * math.pi) - math.pi
+
+
+def pose_at(truth, times, t):
+    i = bisect.bisect_left(times, t)
+    if i == 0 or i == len(times):
+        return None
+    a, b = truth[i - 1], truth[i]
+    if b[0] - a[0] > 0.1:
+        return None
+    u = (t - a[0]) / (b[0] - a[0])
+    return (a[1] + u * (b[1] - a[1]), a[2] + u * (b[2] - a[2]), a[3] + u * wrap(b[3] - a[3]))
+
+
+def robust_sigma(xs):
+    m = statistics.median(xs)
+    return m, 1.4826 * statistics.median([abs(x - m) for x in xs])
+
+
+def main(folder):
+    subject = {int(b): int(s) for s, b in table(os.path.join(folder, "Barcodes.dat"))}
+    landmarks = {int(r[0]): (r[1], r[2]) for r in table(os.path.join(folder, "Landmark_Groundtruth.dat"))}
+    dr, db, ranges, fov = [], [], [], []
+    dv, dw, speeds = [], [], []
+    per_frame = []
+    for robot in range(1, 6):
+        truth = table(os.path.join(folder, f"Robot{robot}_Groundtruth.dat"))
+        times = [r[0] for r in truth]
+        frames = {}
+        for t, code, r, b in table(os.path.join(folder, f"Robot{robot}_Measurement.dat")):
+            s = subject.get(int(code))
+            if s is None or s not in landmarks:
+                continue
+            frames[t] = frames.get(t, 0) + 1
+            p = pose_at(truth, times, t)
+            if p is None:
+                continue
+            lx, ly = landmarks[s]
+            dx, dy = lx - p[0], ly - p[1]
+            dr.append(r - math.hypot(dx, dy))
+            db.append(wrap(b - wrap(math.atan2(dy, dx) - p[2])))
+            ranges.append(r)
+            fov.append(abs(b))
+        per_frame.extend(frames.values())
+        odo = table(os.path.join(folder, f"Robot{robot}_Odometry.dat"))
+        step = 67  # about 1 s of odometry
+        for k in range(0, len(odo) - step, step):
+            t0, t1 = odo[k][0], odo[k + step][0]
+            p0, p1 = pose_at(truth, times, t0), pose_at(truth, times, t1)
+            if p0 is None or p1 is None:
+                continue
+            v_cmd = sum(o[1] for o in odo[k:k + step]) / step
+            w_cmd = sum(o[2] for o in odo[k:k + step]) / step
+            dt = t1 - t0
+            dist = math.hypot(p1[0] - p0[0], p1[1] - p0[1])
+            fwd = (p1[0] - p0[0]) * math.cos(p0[2]) + (p1[1] - p0[1]) * math.sin(p0[2])
+            dv.append(math.copysign(dist, fwd) / dt - v_cmd)
+            dw.append(wrap(p1[2] - p0[2]) / dt - w_cmd)
+            speeds.append(abs(v_cmd))
+    print(f"detections of landmarks: {len(dr)}")
+    for lo, hi in [(0, 2), (2, 3), (3, 4), (4, 5), (5, 10)]:
+        sel = [i for i, r in enumerate(ranges) if lo <= r < hi]
+        if len(sel) < 20:
+            continue
+        mr, sr = robust_sigma([dr[i] for i in sel])
+        mb, sb = robust_sigma([db[i] for i in sel])
+        print(f"range {lo}-{hi} m: n={len(sel)} range bias {mr:+.3f} σ {sr:.3f} m; "
+              f"bearing bias {math.degrees(mb):+.2f}° σ {math.degrees(sb):.2f}°")
+    mr, sr = robust_sigma(dr)
+    mb, sb = robust_sigma(db)
+    print(f"all: range bias {mr:+.3f} σ {sr:.3f} m; bearing bias {math.degrees(mb):+.2f}° σ {math.degrees(sb):.2f}°")
+    big = sum(1 for x, y in zip(dr, db) if abs(x - mr) > 5 * sr or abs(y - mb) > 5 * sb)
+    print(f"beyond 5σ in range or bearing: {100 * big / len(dr):.1f}%")
+    q = sorted(ranges)
+    print(f"range 1st/50th/99th percentile: {q[len(q) // 100]:.2f} / {q[len(q) // 2]:.2f} / {q[99 * len(q) // 100]:.2f} m")
+    f = sorted(fov)
+    print(f"|bearing| 99th percentile / max: {math.degrees(f[99 * len(f) // 100]):.1f}° / {math.degrees(f[-1]):.1f}°")
+    print(f"landmarks per camera frame: mean {statistics.mean(per_frame):.2f}")
+    mv, sv = robust_sigma(dv)
+    mw, sw = robust_sigma(dw)
+    print(f"odometry over 1 s: speed error {mv:+.4f} σ {sv:.4f} m/s (mean |v| {statistics.mean(speeds):.3f}); "
+          f"yaw-rate error {mw:+.4f} σ {sw:.4f} rad/s")
+
+
+if __name__ == "__main__":
+    main(sys.argv[1])
