@@ -364,10 +364,12 @@ fn slam_config(a: &SlamArgs, kind: EstimatorKind) -> Result<FrontEndConfig, Stri
             config
         }
         None => {
-            let noise = a.noise.as_deref().unwrap_or("standard");
-            let preset = Preset::by_name(noise).ok_or("--noise must be standard or hard")?;
-            let method = association.unwrap_or(AssociationMethod::Tracking);
-            let mut config = FrontEndConfig::for_preset(&preset, method, kind);
+            let text = match a.noise.as_deref().unwrap_or("standard") {
+                "standard" => include_str!("../../configs/standard.toml"),
+                "hard" => include_str!("../../configs/hard.toml"),
+                _ => return Err("--noise must be standard or hard".into()),
+            };
+            let mut config = FrontEndConfig::from_toml(text).map_err(|e| e.to_string())?;
             describe_detector(&mut config, a)?;
             config.gate = FrontEndConfig::preset_gate(kind, config.false_positives);
             config
