@@ -177,7 +177,7 @@ impl Sighting {
             _ => wrong,
         };
         let clutter = |c: Color| match c {
-            Color::Blue | Color::Yellow | Color::Unknown => 1.0 / 3.0,
+            Color::Blue | Color::Yellow | Color::Unknown => CLUTTER_UNKNOWN,
             Color::Orange | Color::BigOrange => 1e-3,
         };
         [
@@ -239,18 +239,26 @@ impl Sighting {
     }
 }
 
+/// How often clutter reads as each of blue, yellow and unknown.
+const CLUTTER_UNKNOWN: f64 = 1.0 / 3.0;
+
 /// Detections before the detector's rate of colourless readings is learnt.
 const COLOR_RATE_AFTER: u64 = 50;
 
-/// The detector's rate of `unknown` colours as the log shows it. A detector
-/// that gives no colour (a lidar, a camera that reads barcodes) says
-/// `unknown` of every object; colour is evidence, so such a reading must
-/// not count against a landmark. [`ColorRate::learn`] raises the assumed
-/// `color_unknown` to the rate seen in the log (never lowers it), which
-/// takes the weight out of `unknown` readings where they are the rule.
+/// The detector's rate of `unknown` colours on cones, as the log shows it.
+/// A detector that gives no colour (a lidar, a camera that reads barcodes)
+/// says `unknown` of every object; colour is evidence, so such a reading
+/// must not count against a landmark. [`ColorRate::learn`] raises the
+/// assumed `color_unknown` to the rate the log shows where that is well above
+/// it (never lowers it), which takes the weight out of `unknown` readings
+/// where they are the rule.
+/// The log's rate mixes cones and clutter, which reads `unknown` a third of
+/// the time ([`Sighting::clutter_log_odds`]); the assumed false positives
+/// per scan say how much of it is clutter.
 #[derive(Clone, Copy, Debug)]
 pub struct ColorRate {
     assumed: f64,
+    scans: u64,
     detections: u64,
     unknown: u64,
 }
@@ -260,19 +268,31 @@ impl ColorRate {
     pub fn new(config: &FrontEndConfig) -> Self {
         Self {
             assumed: config.color_unknown,
+            scans: 0,
             detections: 0,
             unknown: 0,
         }
     }
 
     /// Counts a scan's detections and sets `config.color_unknown` to the
-    /// larger of the assumed rate and the rate seen so far.
+    /// cones' rate seen so far where it is more than twice the assumed one.
     pub fn learn(&mut self, cones: &[crate::log::Detection], config: &mut FrontEndConfig) {
+        self.scans += 1;
         self.detections += cones.len() as u64;
         self.unknown += cones.iter().filter(|d| d.color == Color::Unknown).count() as u64;
         if self.detections >= COLOR_RATE_AFTER {
-            let seen = self.unknown as f64 / self.detections as f64;
-            config.color_unknown = self.assumed.max(seen);
+            let n = self.detections as f64;
+            let clutter = (config.false_positives * self.scans as f64 / n).min(0.9);
+            let seen = self.unknown as f64 / n;
+            let cones = ((seen - clutter * CLUTTER_UNKNOWN) / (1.0 - clutter)).clamp(0.0, 1.0);
+            // Clutter objects beside a track also read `unknown` often,
+            // and the false positives do not count them: within twice the
+            // assumed rate the log does not contradict the assumption.
+            config.color_unknown = if cones > 2.0 * self.assumed {
+                cones
+            } else {
+                self.assumed
+            };
         }
     }
 }
