@@ -12,7 +12,9 @@ use std::path::{Path, PathBuf};
 /// Options of `cairn fs-eval`.
 #[derive(Debug, Args)]
 pub struct EvalArgs {
-    /// Simulation directory with truth_map.csv, truth_traj.tum, truth_assoc.csv.
+    /// Truth directory (from fs-sim or fs-import) with truth_map.csv,
+    /// truth_assoc.csv and truth_traj.tum (the trajectory is not scored
+    /// without it).
     #[arg(long)]
     truth: PathBuf,
     /// Estimated map (EUFS CSV).
@@ -38,8 +40,17 @@ pub struct EvalArgs {
 pub fn run_eval(a: EvalArgs) -> Result<(), String> {
     let truth_map = map_from_csv(&read_text(&a.truth.join(TRUTH_MAP))?)
         .map_err(|e| format!("{TRUTH_MAP}: {e}"))?;
-    let truth_traj = files::trajectory_from_tum(&read_text(&a.truth.join(TRUTH_TRAJ))?)
-        .map_err(|e| format!("{TRUTH_TRAJ}: {e}"))?;
+    // A real dataset may have no recorded trajectory (MRCLAM's Dataset 1):
+    // the map and the associations are scored, the trajectory is not.
+    let truth_traj_path = a.truth.join(TRUTH_TRAJ);
+    let truth_traj = if truth_traj_path.exists() {
+        Some(
+            files::trajectory_from_tum(&read_text(&truth_traj_path)?)
+                .map_err(|e| format!("{TRUTH_TRAJ}: {e}"))?,
+        )
+    } else {
+        None
+    };
     let truth_assoc = files::associations_from_csv(&read_text(&a.truth.join(TRUTH_ASSOC))?)
         .map_err(|e| format!("{TRUTH_ASSOC}: {e}"))?;
     let map = map_from_csv(&read_text(&a.map)?).map_err(|e| format!("{}: {e}", a.map.display()))?;
@@ -47,7 +58,19 @@ pub fn run_eval(a: EvalArgs) -> Result<(), String> {
         .map_err(|e| format!("{}: {e}", a.traj.display()))?;
     let assoc = files::associations_from_csv(&read_text(&a.assoc)?)
         .map_err(|e| format!("{}: {e}", a.assoc.display()))?;
-    let mut report = evaluate(&truth_map, &map, &truth_traj, &traj, &truth_assoc, &assoc);
+    let mut report = evaluate(
+        &truth_map,
+        &map,
+        truth_traj.as_deref().unwrap_or_default(),
+        &traj,
+        &truth_assoc,
+        &assoc,
+    );
+    if truth_traj.is_none() {
+        // JSON writes these as null, the table as not scored.
+        report.ate = f64::NAN;
+        report.ate_aligned = f64::NAN;
+    }
     if let Some(path) = &a.timing {
         let v: serde_json::Value = serde_json::from_str(&read_text(path)?)
             .map_err(|e| format!("{}: {e}", path.display()))?;
@@ -70,7 +93,7 @@ pub fn run_eval(a: EvalArgs) -> Result<(), String> {
             &a.map.display().to_string(),
             &truth_map,
             &map,
-            &truth_traj,
+            truth_traj.as_deref().unwrap_or_default(),
             &traj,
         )?;
     }
@@ -108,6 +131,15 @@ pub fn plot_run(
     )
 }
 
+/// A distance to three decimals, or why there is none.
+fn scored(metres: f64) -> String {
+    if metres.is_nan() {
+        format!("not scored (no {TRUTH_TRAJ})")
+    } else {
+        format!("{metres:.3}")
+    }
+}
+
 /// The report as an aligned text table.
 pub fn table(r: &Report) -> String {
     let mut rows = vec![
@@ -128,8 +160,8 @@ pub fn table(r: &Report) -> String {
     rows.extend([
         ("phantom landmarks".into(), r.phantom.to_string()),
         ("missed cones".into(), r.missed.to_string()),
-        ("ATE (m)".into(), format!("{:.3}", r.ate)),
-        ("ATE, aligned (m)".into(), format!("{:.3}", r.ate_aligned)),
+        ("ATE (m)".into(), scored(r.ate)),
+        ("ATE, aligned (m)".into(), scored(r.ate_aligned)),
         (
             "association accuracy".into(),
             format!("{:.2}% of {}", 100.0 * r.association_accuracy, r.detections),
