@@ -1,10 +1,12 @@
-//! `cairn fs-import`: real recordings to the FORMAT.md log and truth files.
+//! `cairn fs-import`: real recordings to the FORMAT.md log and truth files;
+//! `cairn fs-smooth`: the batch smoother given the associations.
 
-use super::fs::{LOG, TRUTH_ASSOC, TRUTH_MAP, TRUTH_TRAJ};
+use super::fs::{LOG, TRUTH_ASSOC, TRUTH_MAP, TRUTH_TRAJ, read_text};
 use super::write_output;
-use cairn::fs_tools::mrclam;
+use cairn::fs_tools::{mrclam, smoother};
 use cairn::slam::files;
-use cairn::slam::log::to_jsonl;
+use cairn::slam::frontend::FrontEndConfig;
+use cairn::slam::log::{Log, to_jsonl};
 use cairn::slam::track::map_to_csv;
 use clap::{Args, Subcommand};
 use std::path::PathBuf;
@@ -78,6 +80,71 @@ pub fn run(a: ImportArgs) -> Result<(), String> {
         } else {
             ""
         }
+    );
+    Ok(())
+}
+
+/// Options of `cairn fs-smooth`.
+#[derive(Debug, Args)]
+pub struct SmoothArgs {
+    /// Input log (JSON Lines, FORMAT.md).
+    log: PathBuf,
+    /// The association of every detection (CSV scan,det,landmark; -1 for
+    /// none), such as fs-import's truth_assoc.csv from the barcodes.
+    #[arg(long)]
+    assoc: PathBuf,
+    /// The assumed detector and odometry noise (TOML, as fs-slam's).
+    #[arg(long, value_name = "FILE.toml")]
+    config: Option<PathBuf>,
+    /// Write the map (EUFS CSV).
+    #[arg(long)]
+    map_out: Option<PathBuf>,
+    /// Write the trajectory (TUM).
+    #[arg(long)]
+    traj_out: Option<PathBuf>,
+    /// Write the associations in the map's rows (CSV), for fs-eval.
+    #[arg(long)]
+    assoc_out: Option<PathBuf>,
+    /// Write the solved graph (g2o: EDGE_SE2 odometry, EDGE_SE2_XY sightings).
+    #[arg(long)]
+    g2o_out: Option<PathBuf>,
+}
+
+pub fn run_smooth(a: SmoothArgs) -> Result<(), String> {
+    let name = a.log.display().to_string();
+    let log = Log::parse(&read_text(&a.log)?, false).map_err(|e| format!("{name}: {e}"))?;
+    let associations = files::associations_from_csv(&read_text(&a.assoc)?)
+        .map_err(|e| format!("{}: {e}", a.assoc.display()))?;
+    let config = match &a.config {
+        Some(path) => FrontEndConfig::from_toml(&read_text(path)?)
+            .map_err(|e| format!("{}: {e}", path.display()))?,
+        None => FrontEndConfig::default(),
+    };
+    let smoothed =
+        smoother::smooth(&log.records, &associations, &config).map_err(|e| format!("{name}: {e}"))?;
+    let g2o = match &a.g2o_out {
+        Some(_) => Some(cairn::g2o::to_string(&smoothed.graph).map_err(|e| e.to_string())?),
+        None => None,
+    };
+    for (path, text) in [
+        (&a.map_out, Some(map_to_csv(&smoothed.map))),
+        (&a.traj_out, Some(files::trajectory_to_tum(&smoothed.trajectory))),
+        (&a.assoc_out, Some(files::associations_to_csv(&smoothed.associations))),
+        (&a.g2o_out, g2o),
+    ] {
+        if let (Some(path), Some(text)) = (path, text) {
+            write_output(path, text.as_bytes())?;
+        }
+    }
+    let s = &smoothed.summary;
+    eprintln!(
+        "{name}: {} poses, {} landmarks; χ² {:.6} → {:.6} in {} iterations ({:?})",
+        smoothed.trajectory.len(),
+        smoothed.map.len(),
+        s.initial_chi2,
+        s.final_chi2,
+        s.iterations,
+        s.termination
     );
     Ok(())
 }

@@ -45,6 +45,9 @@ enum Command {
     FsEval(fs_eval::EvalArgs),
     /// Import a real recording as a log and its ground truth (FORMAT.md).
     FsImport(fs_import::ImportArgs),
+    /// Smooth a log in one batch given every detection's landmark (the
+    /// barcodes of an imported recording): the upper bound of a front end.
+    FsSmooth(fs_import::SmoothArgs),
     /// Simulate, map and score every shared and some random tracks into a report.
     FsReport(fs_report::ReportArgs),
     /// Compare the estimators (graph, EKF-SLAM, FastSLAM 1.0/2.0) on simulated
@@ -63,6 +66,7 @@ pub fn run(cli: Cli) -> Result<(), String> {
         Command::FsSlam(args) => fs::run_slam(args),
         Command::FsEval(args) => fs_eval::run_eval(args),
         Command::FsImport(args) => fs_import::run(args),
+        Command::FsSmooth(args) => fs_import::run_smooth(args),
         Command::FsReport(args) => fs_report::run(args),
         Command::FsStudy(args) => study::run(args),
     }
