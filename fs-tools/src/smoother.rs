@@ -3,32 +3,22 @@
 //!
 //! Every scan is a pose, tied to the one before (the first to the log's
 //! start) by the odometry integrated between them (the front end's motion
-//! model, [`FrontEndConfig`]'s noise);
-//! every detection with a known landmark is a range/bearing sighting as an
-//! `EDGE_SE2_XY` with the assumed detector noise under a Cauchy kernel. The
-//! start is held; the poses start from dead
-//! reckoning and the landmarks from their first sighting, and Cairn's
-//! Levenberg-Marquardt solves it from the best of the file's and the chordal
-//! starts ([`Initialization::Auto`]).
+//! model and [`FrontEndConfig`]'s noise); every detection with a
+//! known landmark is a range/bearing sighting as an `EDGE_SE2_XY` with the
+//! assumed detector noise under a Cauchy kernel ([`Batch`]). The start is
+//! held; the poses start from dead reckoning and the landmarks from their
+//! first sighting, and Cairn's Levenberg-Marquardt solves it.
 
-use cairn_core::edges::{EdgeSE2, EdgeSE2XY};
-use cairn_core::{Graph, GraphError, RobustKernel, SE2};
+use cairn_core::{Graph, GraphError, SE2};
+use crate::batch::{Batch, BatchSighting};
 use cairn_slam::files::{Association, StampedPose};
-use cairn_slam::frontend::FrontEndConfig;
+use cairn_slam::frontend::{FrontEndConfig, OptimiseError};
 use cairn_slam::log::Record;
 use cairn_slam::motion::Odometry;
 use cairn_slam::track::Cone;
-use cairn_solvers::{Algorithm, Initialization, SolveError, SolverConfig, Summary, optimize_from};
-use nalgebra::{Matrix2, Matrix3, Vector2};
+use cairn_solvers::{Initialization, Summary};
+use nalgebra::Vector2;
 use std::collections::HashMap;
-
-/// The Cauchy kernel's width on the sightings' χ² (as `cairn solve
-/// --robust-kernel cauchy --robust-kernel-width 1`).
-pub const CAUCHY_WIDTH: f64 = 1.0;
-
-/// Variance added to every odometry step's covariance: a robot standing
-/// still has a step of zero covariance, whose information would be infinite.
-const STEP_FLOOR: [f64; 3] = [1e-8, 1e-8, 1e-10];
 
 /// The smoothed map and trajectory.
 pub struct Smoothed {
@@ -41,7 +31,8 @@ pub struct Smoothed {
     /// The solver's summary.
     pub summary: Summary,
     /// The graph as solved, for `cairn solve` and g2o: vertex 0 is the
-    /// start (held), scan k vertex k + 1, landmark id l vertex 2⁴⁰ + l.
+    /// start (held), scan k vertex k + 1, the landmarks from vertex 2⁴⁰ in
+    /// the order the associations first name them.
     pub graph: Graph,
 }
 
@@ -61,29 +52,22 @@ pub enum SmoothError {
         /// Its detection.
         det: usize,
     },
+    /// The graph could not be built or solved.
+    #[error(transparent)]
+    Optimise(#[from] OptimiseError),
     /// The graph could not be built.
     #[error(transparent)]
     Graph(#[from] GraphError),
-    /// The solver failed.
-    #[error(transparent)]
-    Solve(#[from] SolveError),
 }
 
 /// Scans added between two solves of the growing graph.
 const CHUNK: usize = 100;
 
-/// A sighting of a known landmark from a scan.
-struct Sighting {
-    scan: usize,
-    landmark: usize,
-    z: Vector2<f64>,
-    information: Matrix2<f64>,
-}
-
 /// Builds the graph of `log` with the landmark of every detection that
 /// `associations` gives, and solves it. The graph grows [`CHUNK`] scans at a
 /// time, each solve starting from the last one's estimate, so that the
-/// dead reckoning of a long log (metres off) never has to be undone at once.
+/// dead reckoning of a long log (metres off) never has to be undone at once;
+/// the last solve also tries the chordal starts ([`Initialization::Auto`]).
 pub fn smooth(
     log: &[Record],
     associations: &[Association],
@@ -107,9 +91,7 @@ pub fn smooth(
             Record::Cones { t, cones } => {
                 motion.advance(*t, (1.0, 0.0));
                 let (delta, cov) = motion.take();
-                let floor = Matrix3::from_diagonal(&STEP_FLOOR.into());
-                let information = (cov + floor).try_inverse().unwrap_or_else(Matrix3::zeros);
-                steps.push((delta, information));
+                steps.push((delta, Batch::step_information(&cov)));
                 times.push(*t);
                 scans.push(cones);
             }
@@ -119,82 +101,81 @@ pub fn smooth(
     if times.is_empty() {
         return Err(SmoothError::NoScan);
     }
+    // Landmark ids as the associations give them → rows of the batch.
+    let mut row: HashMap<usize, usize> = HashMap::new();
+    let mut ids = Vec::new();
     let mut sightings = Vec::new();
-    for (row, a) in associations.iter().enumerate() {
+    for (k, a) in associations.iter().enumerate() {
         let d = scans
             .get(a.scan)
             .and_then(|cones| cones.get(a.det))
             .ok_or(SmoothError::NotInLog {
-                row,
+                row: k,
                 scan: a.scan,
                 det: a.det,
             })?;
-        if let Some(landmark) = a.landmark {
-            sightings.push(Sighting {
+        if let Some(id) = a.landmark {
+            let landmark = *row.entry(id).or_insert_with(|| {
+                ids.push(id);
+                ids.len() - 1
+            });
+            let information = config.detection_cov(d).try_inverse().unwrap_or_default();
+            sightings.push(BatchSighting {
                 scan: a.scan,
                 landmark,
                 z: d.position,
-                information: config
-                    .detection_cov(d)
-                    .try_inverse()
-                    .unwrap_or_else(Matrix2::zeros),
+                information,
             });
         }
     }
     sightings.sort_by_key(|s| s.scan);
-    // poses[0] is the start, poses[k + 1] scan k's.
-    let mut poses = vec![start];
-    let mut landmarks: HashMap<usize, Vector2<f64>> = HashMap::new();
+    let mut batch = Batch::new(start);
+    let mut placed = vec![false; ids.len()];
+    batch.landmarks = vec![Vector2::zeros(); ids.len()];
     let n = times.len();
     let mut summary = None;
-    let mut graph = Graph::new();
-    let ends = (CHUNK..n).step_by(CHUNK).chain(std::iter::once(n));
-    for end in ends {
-        while poses.len() <= end {
-            let k = poses.len() - 1;
-            let next = poses[k].compose(&steps[k].0);
-            poses.push(next);
+    for end in (CHUNK..n).step_by(CHUNK).chain(std::iter::once(n)) {
+        while batch.poses.len() <= end {
+            let k = batch.poses.len() - 1;
+            let next = batch.poses[k].compose(&steps[k].0);
+            batch.poses.push(next);
         }
         let seen = sightings.partition_point(|s| s.scan < end);
         for s in &sightings[..seen] {
-            landmarks
-                .entry(s.landmark)
-                .or_insert_with(|| poses[s.scan + 1].transform_point(&s.z));
+            if !placed[s.landmark] {
+                placed[s.landmark] = true;
+                batch.landmarks[s.landmark] = batch.poses[s.scan + 1].transform_point(&s.z);
+            }
         }
-        graph = build(&poses, &steps[..end], &sightings[..seen], &landmarks)?;
-        let solver = SolverConfig {
-            algorithm: Algorithm::LevenbergMarquardt,
-            max_iterations: 200,
-            ..SolverConfig::default()
-        };
+        batch.steps = steps[..end].to_vec();
+        batch.sightings = sightings[..seen].to_vec();
         let init = if end == n { Initialization::Auto } else { Initialization::File };
-        summary = Some(optimize_from(&mut graph, solver, init, &mut |_, _| {})?.0);
-        for (k, pose) in poses.iter_mut().enumerate() {
-            *pose = graph.value::<SE2, 3>(k as i64)?;
-        }
-        for (l, p) in landmarks.iter_mut() {
-            *p = graph.value::<Vector2<f64>, 2>(landmark_vertex(*l))?;
-        }
+        summary = Some(batch.solve(init, 200)?);
     }
     let trajectory = times
         .iter()
-        .zip(&poses[1..])
+        .zip(&batch.poses[1..])
         .map(|(&t, &pose)| StampedPose { t, pose })
         .collect();
-    let mut seen: Vec<usize> = landmarks.keys().copied().collect();
-    seen.sort_unstable();
-    let row: HashMap<usize, usize> = seen.iter().enumerate().map(|(r, &l)| (l, r)).collect();
-    let map = seen
+    // The map in the order of the landmarks' ids.
+    let mut order: Vec<usize> = (0..ids.len()).collect();
+    order.sort_by_key(|&l| ids[l]);
+    let mut map_row = vec![0; ids.len()];
+    for (r, &l) in order.iter().enumerate() {
+        map_row[l] = r;
+    }
+    let map = order
         .iter()
-        .map(|l| Cone::new(landmarks[l].x, landmarks[l].y, cairn_slam::Color::Unknown))
+        .map(|&l| Cone::new(batch.landmarks[l].x, batch.landmarks[l].y, cairn_slam::Color::Unknown))
         .collect();
     let associations = associations
         .iter()
         .map(|a| Association {
-            landmark: a.landmark.and_then(|l| row.get(&l).copied()),
+            landmark: a.landmark.map(|id| map_row[row[&id]]),
             ..*a
         })
         .collect();
+    let (graph, _) = batch.graph()?;
     Ok(Smoothed {
         map,
         associations,
@@ -202,41 +183,4 @@ pub fn smooth(
         summary: summary.ok_or(SmoothError::NoScan)?,
         graph,
     })
-}
-
-/// Landmark ids start at this vertex id, clear of any log's scans.
-const LANDMARK_BASE: i64 = 1 << 40;
-
-fn landmark_vertex(landmark: usize) -> i64 {
-    LANDMARK_BASE + landmark as i64
-}
-
-/// The graph of the start (held), the poses `poses[1..]` tied by `steps`,
-/// and the `sightings` of `landmarks`.
-fn build(
-    poses: &[SE2],
-    steps: &[(SE2, Matrix3<f64>)],
-    sightings: &[Sighting],
-    landmarks: &HashMap<usize, Vector2<f64>>,
-) -> Result<Graph, GraphError> {
-    let mut graph = Graph::new();
-    for (k, pose) in poses.iter().enumerate().take(steps.len() + 1) {
-        graph.add_vertex(k as i64, *pose)?;
-    }
-    graph.set_fixed(0, true)?;
-    for (k, (delta, information)) in steps.iter().enumerate() {
-        graph.add_edge(k as i64, k as i64 + 1, EdgeSE2::new(*delta), *information)?;
-    }
-    let mut ids: Vec<usize> = sightings.iter().map(|s| s.landmark).collect();
-    ids.sort_unstable();
-    ids.dedup();
-    for l in ids {
-        graph.add_vertex(landmark_vertex(l), landmarks[&l])?;
-    }
-    for s in sightings {
-        let edge = EdgeSE2XY::new(s.z);
-        let e = graph.add_edge(s.scan as i64 + 1, landmark_vertex(s.landmark), edge, s.information)?;
-        graph.set_robust_kernel(e, Some(RobustKernel::Cauchy(CAUCHY_WIDTH)));
-    }
-    Ok(graph)
 }
