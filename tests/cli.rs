@@ -435,3 +435,66 @@ fn gn_stops_on_a_rise_when_asked() {
     ]);
     assert!(!o.status.success() && stderr(&o).contains("--stop-on-increase"));
 }
+
+#[test]
+fn linearize_writes_matrix_market_files_that_agree() {
+    let dir = temp_dir("linearize");
+    let input = dir.join("m.g2o");
+    generate("manhattan", 200, &input);
+    let files: Vec<PathBuf> = ["h.mtx", "j.mtx", "b.mtx", "cols.csv", "rows.csv"]
+        .iter()
+        .map(|f| dir.join(f))
+        .collect();
+    let o = cairn(&[
+        "linearize",
+        s(&input),
+        "--hessian",
+        s(&files[0]),
+        "--jacobian",
+        s(&files[1]),
+        "--rhs",
+        s(&files[2]),
+        "--columns",
+        s(&files[3]),
+        "--rows",
+        s(&files[4]),
+    ]);
+    let said = stderr(&o);
+    assert!(o.status.success(), "{said}");
+    for ordering in ["block-amd", "amd", "schur", "identity"] {
+        assert!(said.contains(ordering), "{said}");
+    }
+    // H as written (its lower triangle, symmetric) is JᵀJ of J as written.
+    let h: sprs::TriMat<f64> = sprs::io::read_matrix_market(&files[0]).unwrap();
+    let j: sprs::TriMat<f64> = sprs::io::read_matrix_market(&files[1]).unwrap();
+    let b: sprs::TriMat<f64> = sprs::io::read_matrix_market(&files[2]).unwrap();
+    let (h, j): (sprs::CsMat<f64>, sprs::CsMat<f64>) = (h.to_csc(), j.to_csc());
+    let n = 199 * 3;
+    assert_eq!((h.rows(), h.cols(), j.cols(), b.rows()), (n, n, n, n));
+    let jtj = &j.transpose_view().to_csc() * &j;
+    let scale = h.iter().fold(0.0f64, |m, (v, _)| m.max(v.abs()));
+    let diff = (&jtj - &h).iter().fold(0.0f64, |m, (v, _)| m.max(v.abs()));
+    assert!(diff < 1e-9 * scale, "JᵀJ and H differ by {diff}");
+    let columns = std::fs::read_to_string(&files[3]).unwrap();
+    assert_eq!(columns.lines().count(), n + 1);
+    let rows = std::fs::read_to_string(&files[4]).unwrap();
+    assert_eq!(rows.lines().count(), j.rows() + 1);
+    // A missing folder is named before any work; a bad ordering by its flag.
+    let o = cairn(&[
+        "linearize",
+        s(&input),
+        "--hessian",
+        s(&dir.join("none/h.mtx")),
+    ]);
+    assert!(
+        !o.status.success() && stderr(&o).contains("does not exist"),
+        "{}",
+        stderr(&o)
+    );
+    let o = cairn(&["linearize", s(&input), "--ordering", "nested"]);
+    assert!(
+        !o.status.success() && stderr(&o).contains("--ordering"),
+        "{}",
+        stderr(&o)
+    );
+}

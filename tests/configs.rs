@@ -9,7 +9,9 @@ use cairn::slam::sim::Preset;
 use std::path::Path;
 
 fn shipped(name: &str) -> FrontEndConfig {
-    let path = Path::new(env!("CARGO_MANIFEST_DIR")).join("configs").join(name);
+    let path = Path::new(env!("CARGO_MANIFEST_DIR"))
+        .join("configs")
+        .join(name);
     let text = std::fs::read_to_string(&path).expect("the shipped config reads");
     FrontEndConfig::from_toml(&text).unwrap_or_else(|e| panic!("{}: {e}", path.display()))
 }
@@ -27,18 +29,29 @@ fn every_shipped_config_reads_and_round_trips() {
     config.motion = cairn::slam::frontend::MotionModel::Bicycle { wheelbase: 1.53 };
     config.association = AssociationMethod::Jcbb;
     let text = config.to_toml();
-    assert_eq!(FrontEndConfig::from_toml(&text).expect("reads back"), config, "{text}");
+    assert_eq!(
+        FrontEndConfig::from_toml(&text).expect("reads back"),
+        config,
+        "{text}"
+    );
 }
 
 /// Every number of two configs, by key, to 1e-12 relative.
 fn assert_same(a: &FrontEndConfig, b: &FrontEndConfig, what: &str) {
     let table = |c: &FrontEndConfig| -> toml::Table { toml::from_str(&c.to_toml()).expect("TOML") };
     let (a, b) = (table(a), table(b));
-    assert_eq!(a.keys().collect::<Vec<_>>(), b.keys().collect::<Vec<_>>(), "{what}");
+    assert_eq!(
+        a.keys().collect::<Vec<_>>(),
+        b.keys().collect::<Vec<_>>(),
+        "{what}"
+    );
     for (key, x) in &a {
         let y = &b[key];
         match (x.as_float(), y.as_float()) {
-            (Some(x), Some(y)) => assert!((x - y).abs() <= 1e-12 * x.abs().max(1.0), "{what}: {key} {x} vs {y}"),
+            (Some(x), Some(y)) => assert!(
+                (x - y).abs() <= 1e-12 * x.abs().max(1.0),
+                "{what}: {key} {x} vs {y}"
+            ),
             _ => assert_eq!(x, y, "{what}: {key}"),
         }
     }
@@ -46,8 +59,12 @@ fn assert_same(a: &FrontEndConfig, b: &FrontEndConfig, what: &str) {
 
 #[test]
 fn the_preset_files_are_the_presets() {
-    for (name, preset) in [("standard.toml", Preset::standard()), ("hard.toml", Preset::hard())] {
-        let preset = FrontEndConfig::for_preset(&preset, AssociationMethod::Tracking, EstimatorKind::Graph);
+    for (name, preset) in [
+        ("standard.toml", Preset::standard()),
+        ("hard.toml", Preset::hard()),
+    ] {
+        let preset =
+            FrontEndConfig::for_preset(&preset, AssociationMethod::Tracking, EstimatorKind::Graph);
         assert_same(&shipped(name), &preset, name);
     }
 }
@@ -58,14 +75,32 @@ fn bad_files_name_the_key() {
     assert!(matches!(err, ConfigError::Toml(_)));
     assert!(err.to_string().contains("range_sigmaa"), "{err}");
     for (text, field) in [
-        ("range_sigma = -0.1", "range_sigma must be finite and positive"),
-        ("bearing_sigma = 0.0", "bearing_sigma must be finite and positive"),
+        (
+            "range_sigma = -0.1",
+            "range_sigma must be finite and positive",
+        ),
+        (
+            "bearing_sigma = 0.0",
+            "bearing_sigma must be finite and positive",
+        ),
         ("fov = 7.0", "fov must be in (0, 2π]"),
-        ("detection_probability = 1.5", "detection_probability must be in (0, 1]"),
-        ("gate = 30.0", "new_landmark_gate must be finite and above 30"),
+        (
+            "detection_probability = 1.5",
+            "detection_probability must be in (0, 1]",
+        ),
+        (
+            "gate = 30.0",
+            "new_landmark_gate must be finite and above 30",
+        ),
         ("max_range = 1e400", "max_range"),
-        ("motion = { bicycle = { wheelbase = 0.0 } }", "motion.bicycle.wheelbase must be finite and positive"),
-        ("rot_trans_rot = [0.1, 0.1, -0.1, 0.1]", "rot_trans_rot must be finite and ≥ 0"),
+        (
+            "motion = { bicycle = { wheelbase = 0.0 } }",
+            "motion.bicycle.wheelbase must be finite and positive",
+        ),
+        (
+            "rot_trans_rot = [0.1, 0.1, -0.1, 0.1]",
+            "rot_trans_rot must be finite and ≥ 0",
+        ),
         ("association = \"nearest\"", "nearest"),
         ("confirm_after = 0", "confirm_after"),
     ] {

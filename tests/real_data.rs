@@ -36,13 +36,28 @@ fn every_estimator_maps_an_imported_mrclam_robot() {
     let Some(dataset) = dataset6() else { return };
     let dir = std::env::temp_dir().join(format!("cairn-real-{}", std::process::id()));
     let _ = std::fs::remove_dir_all(&dir);
-    let o = cairn(&["fs-import", "mrclam", s(&dataset), "--robot", "4", "-o", s(&dir)]);
+    let o = cairn(&[
+        "fs-import",
+        "mrclam",
+        s(&dataset),
+        "--robot",
+        "4",
+        "-o",
+        s(&dir),
+    ]);
     let said = String::from_utf8_lossy(&o.stderr);
     assert!(o.status.success(), "{said}");
-    assert!(said.contains("2026 detections (3 misread barcodes)"), "{said}");
+    assert!(
+        said.contains("2026 detections (3 misread barcodes)"),
+        "{said}"
+    );
     let config = Path::new(env!("CARGO_MANIFEST_DIR")).join("configs/mrclam.toml");
     for estimator in ["graph", "ekf", "fastslam1", "fastslam2"] {
-        let (map, traj, assoc) = (dir.join("map.csv"), dir.join("traj.tum"), dir.join("assoc.csv"));
+        let (map, traj, assoc) = (
+            dir.join("map.csv"),
+            dir.join("traj.tum"),
+            dir.join("assoc.csv"),
+        );
         let o = cairn(&[
             "fs-slam",
             s(&dir.join("log.jsonl")),
@@ -57,9 +72,22 @@ fn every_estimator_maps_an_imported_mrclam_robot() {
             "--assoc-out",
             s(&assoc),
         ]);
-        assert!(o.status.success(), "{estimator}: {}", String::from_utf8_lossy(&o.stderr));
+        assert!(
+            o.status.success(),
+            "{estimator}: {}",
+            String::from_utf8_lossy(&o.stderr)
+        );
         let o = cairn(&[
-            "fs-eval", "--truth", s(&dir), "--map", s(&map), "--traj", s(&traj), "--assoc", s(&assoc), "--json",
+            "fs-eval",
+            "--truth",
+            s(&dir),
+            "--map",
+            s(&map),
+            "--traj",
+            s(&traj),
+            "--assoc",
+            s(&assoc),
+            "--json",
         ]);
         assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
         let report: serde_json::Value = serde_json::from_slice(&o.stdout).expect("JSON");
@@ -73,7 +101,10 @@ fn every_estimator_maps_an_imported_mrclam_robot() {
         let on_landmarks = number("landmarks") - number("phantom");
         assert!(on_landmarks >= 2.0, "{estimator}: {report}");
         assert!(number("ate") < 3.0, "{estimator}: {report}");
-        assert!(number("association_accuracy") > 0.3, "{estimator}: {report}");
+        assert!(
+            number("association_accuracy") > 0.3,
+            "{estimator}: {report}"
+        );
     }
     let _ = std::fs::remove_dir_all(&dir);
 }
@@ -91,27 +122,47 @@ fn a_config_file_is_checked_and_its_values_overridden() {
     let o = cairn(&["fs-slam", s(&log), "--config", s(&bad)]);
     let said = String::from_utf8_lossy(&o.stderr);
     assert!(!o.status.success());
-    assert!(said.contains("bad.toml") && said.contains("bearing_sigma_deg"), "{said}");
+    assert!(
+        said.contains("bad.toml") && said.contains("bearing_sigma_deg"),
+        "{said}"
+    );
     std::fs::write(&bad, "gate = -1.0\n").expect("writes");
     let o = cairn(&["fs-slam", s(&log), "--config", s(&bad)]);
     let said = String::from_utf8_lossy(&o.stderr);
     assert!(said.contains("gate must be finite and positive"), "{said}");
     let o = cairn(&["fs-slam", s(&log), "--config", s(&bad), "--noise", "hard"]);
-    assert!(!o.status.success(), "--config and --noise together are refused");
+    assert!(
+        !o.status.success(),
+        "--config and --noise together are refused"
+    );
     // A config whose assumed range noise is far too small rejects most
     // detections (the warning names the noise it assumed); the option
     // overrides it.
-    std::fs::write(&bad, "range_sigma = 0.0001\nrange_sigma_relative = 0.0\nbearing_sigma = 0.00001\n")
-        .expect("writes");
+    std::fs::write(
+        &bad,
+        "range_sigma = 0.0001\nrange_sigma_relative = 0.0\nbearing_sigma = 0.00001\n",
+    )
+    .expect("writes");
     let o = cairn(&["fs-slam", s(&log), "--config", s(&bad)]);
     let said = String::from_utf8_lossy(&o.stderr);
     assert!(o.status.success(), "{said}");
     assert!(said.contains("range σ 0.0001 m"), "{said}");
     let o = cairn(&[
-        "fs-slam", s(&log), "--config", s(&bad), "--range-sigma", "0.05", "--range-sigma-relative", "0.01",
-        "--bearing-sigma-deg", "0.5",
+        "fs-slam",
+        s(&log),
+        "--config",
+        s(&bad),
+        "--range-sigma",
+        "0.05",
+        "--range-sigma-relative",
+        "0.01",
+        "--bearing-sigma-deg",
+        "0.5",
     ]);
     let said = String::from_utf8_lossy(&o.stderr);
-    assert!(o.status.success() && !said.contains("rejected as spurious"), "{said}");
+    assert!(
+        o.status.success() && !said.contains("rejected as spurious"),
+        "{said}"
+    );
     let _ = std::fs::remove_dir_all(&dir);
 }

@@ -117,6 +117,10 @@ pub trait FactorGroup: Send + Sync + 'static {
     fn set_kernel(&mut self, i: usize, kernel: Option<RobustKernel>);
     /// Error vector of edge `i` written into `out` (length `error_dim`).
     fn error(&self, i: usize, values: &Values, out: &mut [f64]);
+    /// Edge `i`'s error into `error` and each vertex's Jacobian ∂e/∂δ
+    /// (`error_dim × dim`, column-major, one vertex after the other, in edge
+    /// order) into `jacobians`, as the solver linearises it.
+    fn jacobians(&self, i: usize, values: &Values, error: &mut [f64], jacobians: &mut [f64]);
     /// Writes every edge's slot (see [`crate::layout`]) into `out`, which holds
     /// `len × stride` scalars.
     fn linearize(&self, values: &Values, out: &mut [f64]);
@@ -268,6 +272,11 @@ impl<T: UnaryEdge<E, D>, const E: usize, const D: usize> FactorGroup for UnaryGr
     fn error(&self, i: usize, values: &Values, out: &mut [f64]) {
         out.copy_from_slice(self.eval(i, values).1.as_slice());
     }
+    fn jacobians(&self, i: usize, values: &Values, error: &mut [f64], jacobians: &mut [f64]) {
+        let (x, e) = self.eval(i, values);
+        error.copy_from_slice(e.as_slice());
+        jacobians.copy_from_slice(self.entries[i].edge.jacobian(&x).as_slice());
+    }
     fn linearize(&self, values: &Values, out: &mut [f64]) {
         let stride = layout::stride(&self.dims);
         let gradients = [layout::gradient_offset(&self.dims, 0)];
@@ -411,6 +420,14 @@ impl<T: BinaryEdge<E, D1, D2>, const E: usize, const D1: usize, const D2: usize>
     }
     fn error(&self, i: usize, values: &Values, out: &mut [f64]) {
         out.copy_from_slice(self.eval(i, values).2.as_slice());
+    }
+    fn jacobians(&self, i: usize, values: &Values, error: &mut [f64], jacobians: &mut [f64]) {
+        let [a, b] = self.vertices[i];
+        let (x1, x2) = (values.get::<T::V1, D1>(a), values.get::<T::V2, D2>(b));
+        let (e, j1, j2) = self.entries[i].edge.linearize(&x1, &x2);
+        error.copy_from_slice(e.as_slice());
+        jacobians[..E * D1].copy_from_slice(j1.as_slice());
+        jacobians[E * D1..].copy_from_slice(j2.as_slice());
     }
     fn linearize(&self, values: &Values, out: &mut [f64]) {
         let stride = layout::stride(&self.dims);

@@ -154,6 +154,16 @@ impl<'a> EdgeView<'a> {
     pub fn kernel(&self) -> Option<RobustKernel> {
         self.group.kernel(self.index)
     }
+    /// The tangent dimension of each of its vertices, in edge order.
+    pub fn vertex_dims(&self) -> &'a [usize] {
+        self.group.vertex_dims()
+    }
+    /// Its error at `values` into `error` (`error_dim` long) and each
+    /// vertex's Jacobian ∂e/∂δ into `jacobians` (`error_dim × dim`,
+    /// column-major, one vertex after the other).
+    pub fn jacobians(&self, values: &Values, error: &mut [f64], jacobians: &mut [f64]) {
+        self.group.jacobians(self.index, values, error, jacobians)
+    }
 }
 
 /// A factor graph: variables of any [`Variable`] type keyed by [`VertexId`], and

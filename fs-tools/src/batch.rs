@@ -4,9 +4,9 @@
 //! kernel. Given the true associations it is the upper bound of a front end
 //! (`cairn fs-smooth`).
 
-use cairn_slam::frontend::OptimiseError;
 use cairn_core::edges::{EdgeSE2, EdgeSE2XY};
 use cairn_core::{Graph, GraphError, RobustKernel, SE2};
+use cairn_slam::frontend::OptimiseError;
 use cairn_solvers::{Algorithm, Initialization, SolverConfig, Summary, optimize_from};
 use nalgebra::{Matrix2, Matrix3, Vector2};
 
@@ -64,7 +64,11 @@ impl Batch {
 
     /// Solves with Levenberg-Marquardt from `init` for at most
     /// `iterations` and takes the estimate.
-    pub fn solve(&mut self, init: Initialization, iterations: usize) -> Result<Summary, OptimiseError> {
+    pub fn solve(
+        &mut self,
+        init: Initialization,
+        iterations: usize,
+    ) -> Result<Summary, OptimiseError> {
         let (mut graph, in_graph) = self.graph()?;
         let config = SolverConfig {
             algorithm: Algorithm::LevenbergMarquardt,
@@ -98,10 +102,18 @@ impl Batch {
         for s in self.sightings.iter().filter(|s| s.scan < scans) {
             if !in_graph[s.landmark] {
                 in_graph[s.landmark] = true;
-                graph.add_vertex(LANDMARK_BASE + s.landmark as i64, self.landmarks[s.landmark])?;
+                graph.add_vertex(
+                    LANDMARK_BASE + s.landmark as i64,
+                    self.landmarks[s.landmark],
+                )?;
             }
             let vertex = LANDMARK_BASE + s.landmark as i64;
-            let e = graph.add_edge(s.scan as i64 + 1, vertex, EdgeSE2XY::new(s.z), s.information)?;
+            let e = graph.add_edge(
+                s.scan as i64 + 1,
+                vertex,
+                EdgeSE2XY::new(s.z),
+                s.information,
+            )?;
             graph.set_robust_kernel(e, Some(RobustKernel::Cauchy(CAUCHY_WIDTH)));
         }
         Ok((graph, in_graph))

@@ -139,7 +139,12 @@ pub fn import(dir: &Path, options: &Options) -> Result<Import, MrclamError> {
     let odometry = read_table::<3>(&odometry_path, &[Column::Time, Column::Real, Column::Real])?;
     let measurements = read_table::<4>(
         &measurement_path,
-        &[Column::Time, Column::Integer, Column::NonNegative, Column::Real],
+        &[
+            Column::Time,
+            Column::Integer,
+            Column::NonNegative,
+            Column::Real,
+        ],
     )?;
     let truth_path = dir.join(format!("Robot{robot}_Groundtruth.dat"));
     let truth = if truth_path.is_file() {
@@ -151,7 +156,10 @@ pub fn import(dir: &Path, options: &Options) -> Result<Import, MrclamError> {
         None
     };
     let Some(first) = odometry.first() else {
-        return Err(not_mrclam(format!("{} is empty", file_name(&odometry_path))));
+        return Err(not_mrclam(format!(
+            "{} is empty",
+            file_name(&odometry_path)
+        )));
     };
     let t0 = first.0;
     let seconds = |t: i64| (t - t0) as f64 / 1000.0;
@@ -263,7 +271,10 @@ fn read_barcodes(path: &Path) -> Result<HashMap<u32, u32>, MrclamError> {
     let rows = read_table::<2>(path, &[Column::Integer, Column::Integer])?;
     let mut subject_of = HashMap::new();
     for (line, (_, [subject, barcode])) in rows.iter().enumerate() {
-        if subject_of.insert(*barcode as u32, *subject as u32).is_some() {
+        if subject_of
+            .insert(*barcode as u32, *subject as u32)
+            .is_some()
+        {
             return Err(MrclamError::Line {
                 path: path.to_path_buf(),
                 line: line + 1,

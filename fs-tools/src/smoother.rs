@@ -9,8 +9,8 @@
 //! held; the poses start from dead reckoning and the landmarks from their
 //! first sighting, and Cairn's Levenberg-Marquardt solves it.
 
-use cairn_core::{Graph, GraphError, SE2};
 use crate::batch::{Batch, BatchSighting};
+use cairn_core::{Graph, GraphError, SE2};
 use cairn_slam::files::{Association, StampedPose};
 use cairn_slam::frontend::{FrontEndConfig, OptimiseError};
 use cairn_slam::log::Record;
@@ -106,14 +106,15 @@ pub fn smooth(
     let mut ids = Vec::new();
     let mut sightings = Vec::new();
     for (k, a) in associations.iter().enumerate() {
-        let d = scans
-            .get(a.scan)
-            .and_then(|cones| cones.get(a.det))
-            .ok_or(SmoothError::NotInLog {
-                row: k,
-                scan: a.scan,
-                det: a.det,
-            })?;
+        let d =
+            scans
+                .get(a.scan)
+                .and_then(|cones| cones.get(a.det))
+                .ok_or(SmoothError::NotInLog {
+                    row: k,
+                    scan: a.scan,
+                    det: a.det,
+                })?;
         if let Some(id) = a.landmark {
             let landmark = *row.entry(id).or_insert_with(|| {
                 ids.push(id);
@@ -149,7 +150,11 @@ pub fn smooth(
         }
         batch.steps = steps[..end].to_vec();
         batch.sightings = sightings[..seen].to_vec();
-        let init = if end == n { Initialization::Auto } else { Initialization::File };
+        let init = if end == n {
+            Initialization::Auto
+        } else {
+            Initialization::File
+        };
         summary = Some(batch.solve(init, 200)?);
     }
     let trajectory = times
@@ -166,7 +171,13 @@ pub fn smooth(
     }
     let map = order
         .iter()
-        .map(|&l| Cone::new(batch.landmarks[l].x, batch.landmarks[l].y, cairn_slam::Color::Unknown))
+        .map(|&l| {
+            Cone::new(
+                batch.landmarks[l].x,
+                batch.landmarks[l].y,
+                cairn_slam::Color::Unknown,
+            )
+        })
         .collect();
     let associations = associations
         .iter()

@@ -7,7 +7,8 @@ use cairn_slam::log::Record;
 use std::path::{Path, PathBuf};
 
 fn dataset6() -> Option<PathBuf> {
-    let dir = Path::new(env!("CARGO_MANIFEST_DIR")).join("../../shared/real/mrclam/MRCLAM_Dataset6");
+    let dir =
+        Path::new(env!("CARGO_MANIFEST_DIR")).join("../../shared/real/mrclam/MRCLAM_Dataset6");
     if dir.is_dir() {
         return Some(dir);
     }
@@ -40,7 +41,10 @@ fn scans(log: &[Record]) -> Vec<(f64, Vec<(f64, f64)>)> {
         .filter_map(|r| match r {
             Record::Cones { t, cones } => Some((
                 *t,
-                cones.iter().map(|d| d.range_bearing.expect("range/bearing")).collect(),
+                cones
+                    .iter()
+                    .map(|d| d.range_bearing.expect("range/bearing"))
+                    .collect(),
             )),
             _ => None,
         })
@@ -59,7 +63,14 @@ fn a_slice_of_robot_1_imports_as_read_by_hand() {
     head(&dataset, &dir, "Robot1_Measurement.dat", 16);
     head(&dataset, &dir, "Robot1_Odometry.dat", 8);
     head(&dataset, &dir, "Robot1_Groundtruth.dat", 700);
-    let import = import(&dir, &Options { robot: 1, ids: false }).expect("the slice imports");
+    let import = import(
+        &dir,
+        &Options {
+            robot: 1,
+            ids: false,
+        },
+    )
+    .expect("the slice imports");
 
     // Barcode 14 is robot 2 (5 lines; the frames that saw only it, 190.289,
     // 190.981 and 191.131, make no scan).
@@ -104,7 +115,11 @@ fn a_slice_of_robot_1_imports_as_read_by_hand() {
     // Every detection is colourless and carries no id without --ids.
     for record in &import.log {
         if let Record::Cones { cones, .. } = record {
-            assert!(cones.iter().all(|d| d.color == Color::Unknown && d.id.is_none()));
+            assert!(
+                cones
+                    .iter()
+                    .all(|d| d.color == Color::Unknown && d.id.is_none())
+            );
         }
     }
     // The start: Vicon at 187.156, between 187.146 (1.41269620, -3.89080560,
@@ -140,11 +155,20 @@ fn a_slice_of_robot_1_imports_as_read_by_hand() {
     assert!(truth.last().is_some_and(|p| p.t <= 3.826));
     assert_eq!(import.truth_map.len(), 15);
     // Row 9 is subject 15 (barcode 90).
-    assert!((import.truth_map[9].position - nalgebra::Vector2::new(1.54725918, 2.76939627)).norm() < 1e-12);
+    assert!(
+        (import.truth_map[9].position - nalgebra::Vector2::new(1.54725918, 2.76939627)).norm()
+            < 1e-12
+    );
 
     // With --ids, the barcodes are the tracker ids.
-    let with_ids = cairn_fs_tools::mrclam::import(&dir, &Options { robot: 1, ids: true })
-        .expect("the slice imports");
+    let with_ids = cairn_fs_tools::mrclam::import(
+        &dir,
+        &Options {
+            robot: 1,
+            ids: true,
+        },
+    )
+    .expect("the slice imports");
     let ids: Vec<u64> = with_ids
         .log
         .iter()
@@ -166,9 +190,21 @@ fn write(dir: &Path, name: &str, text: &str) {
 /// A hand-made dataset: a misread barcode, a measurement before the
 /// odometry, a robot seen, and no Vicon trajectory (as Dataset 1).
 fn tiny(dir: &Path) {
-    write(dir, "Barcodes.dat", "# subject barcode\n1 5\n2 14\n6 63\n7 81\n");
-    write(dir, "Landmark_Groundtruth.dat", "6 1.0 2.0 0.001 0.002\n7 -1.0 0.5 0 0\n");
-    write(dir, "Robot1_Odometry.dat", "100.000 0.1 0.0\n100.500 0.1 0.2\n");
+    write(
+        dir,
+        "Barcodes.dat",
+        "# subject barcode\n1 5\n2 14\n6 63\n7 81\n",
+    );
+    write(
+        dir,
+        "Landmark_Groundtruth.dat",
+        "6 1.0 2.0 0.001 0.002\n7 -1.0 0.5 0 0\n",
+    );
+    write(
+        dir,
+        "Robot1_Odometry.dat",
+        "100.000 0.1 0.0\n100.500 0.1 0.2\n",
+    );
     write(
         dir,
         "Robot1_Measurement.dat",
@@ -180,7 +216,14 @@ fn tiny(dir: &Path) {
 fn misreads_robots_and_early_measurements_are_sorted_out() {
     let dir = folder("tiny");
     tiny(&dir);
-    let import = import(&dir, &Options { robot: 1, ids: false }).expect("imports");
+    let import = import(
+        &dir,
+        &Options {
+            robot: 1,
+            ids: false,
+        },
+    )
+    .expect("imports");
     assert_eq!(
         import.counts,
         Counts {
@@ -193,10 +236,23 @@ fn misreads_robots_and_early_measurements_are_sorted_out() {
         }
     );
     assert!(import.truth_trajectory.is_none());
-    assert!(!matches!(import.log[0], Record::Start { .. }), "no Vicon, no start");
-    let truth: Vec<Option<usize>> = import.truth_associations.iter().map(|a| a.landmark).collect();
+    assert!(
+        !matches!(import.log[0], Record::Start { .. }),
+        "no Vicon, no start"
+    );
+    let truth: Vec<Option<usize>> = import
+        .truth_associations
+        .iter()
+        .map(|a| a.landmark)
+        .collect();
     assert_eq!(truth, [Some(1), None, Some(0)]);
-    assert_eq!(scans(&import.log), [(0.25, vec![(1.5, -0.2), (2.5, 0.3)]), (1.0, vec![(1.9, 0.1)])]);
+    assert_eq!(
+        scans(&import.log),
+        [
+            (0.25, vec![(1.5, -0.2), (2.5, 0.3)]),
+            (1.0, vec![(1.9, 0.1)])
+        ]
+    );
     // The odometry of 100.5 comes between the two scans.
     assert!(matches!(import.log[2], Record::Odom { t, .. } if t == 0.5));
     let _ = std::fs::remove_dir_all(&dir);
@@ -205,35 +261,99 @@ fn misreads_robots_and_early_measurements_are_sorted_out() {
 #[test]
 fn broken_folders_get_errors_that_name_the_file_and_line() {
     let dir = folder("broken");
-    let err = import(&dir, &Options { robot: 1, ids: false }).unwrap_err();
+    let err = import(
+        &dir,
+        &Options {
+            robot: 1,
+            ids: false,
+        },
+    )
+    .unwrap_err();
     assert!(matches!(err, MrclamError::NotMrclam { .. }), "{err}");
     assert!(err.to_string().contains("no Barcodes.dat"), "{err}");
     tiny(&dir);
     assert!(matches!(
-        import(&dir, &Options { robot: 6, ids: false }),
+        import(
+            &dir,
+            &Options {
+                robot: 6,
+                ids: false
+            }
+        ),
         Err(MrclamError::Robot(6))
     ));
-    let err = import(&dir, &Options { robot: 2, ids: false }).unwrap_err();
+    let err = import(
+        &dir,
+        &Options {
+            robot: 2,
+            ids: false,
+        },
+    )
+    .unwrap_err();
     assert!(err.to_string().contains("no Robot2_Odometry.dat"), "{err}");
     for (name, text, message) in [
-        ("Robot1_Odometry.dat", "100.0 0.1\n", "line 1: expected 3 columns, found 2"),
-        ("Robot1_Odometry.dat", "100.0 0.1 0\n99.0 0.1 0\n", "line 2: time goes backwards"),
-        ("Robot1_Odometry.dat", "100.0 NaN 0\n", "line 1: column 2: 'NaN' is not a number"),
-        ("Robot1_Odometry.dat", "1e300 0.1 0\n", "line 1: column 1: '1e300' must be a time"),
-        ("Robot1_Measurement.dat", "100.0 63 -2.0 0.1\n", "line 1: column 3: '-2.0' must be not negative"),
-        ("Robot1_Measurement.dat", "100.0 6.5 2.0 0.1\n", "line 1: column 2: '6.5' must be a whole number"),
-        ("Barcodes.dat", "6 63\n7 63\n", "line 2: barcode 63 is listed twice"),
+        (
+            "Robot1_Odometry.dat",
+            "100.0 0.1\n",
+            "line 1: expected 3 columns, found 2",
+        ),
+        (
+            "Robot1_Odometry.dat",
+            "100.0 0.1 0\n99.0 0.1 0\n",
+            "line 2: time goes backwards",
+        ),
+        (
+            "Robot1_Odometry.dat",
+            "100.0 NaN 0\n",
+            "line 1: column 2: 'NaN' is not a number",
+        ),
+        (
+            "Robot1_Odometry.dat",
+            "1e300 0.1 0\n",
+            "line 1: column 1: '1e300' must be a time",
+        ),
+        (
+            "Robot1_Measurement.dat",
+            "100.0 63 -2.0 0.1\n",
+            "line 1: column 3: '-2.0' must be not negative",
+        ),
+        (
+            "Robot1_Measurement.dat",
+            "100.0 6.5 2.0 0.1\n",
+            "line 1: column 2: '6.5' must be a whole number",
+        ),
+        (
+            "Barcodes.dat",
+            "6 63\n7 63\n",
+            "line 2: barcode 63 is listed twice",
+        ),
         ("Robot1_Odometry.dat", "", "Robot1_Odometry.dat is empty"),
     ] {
         tiny(&dir);
         write(&dir, name, text);
-        let err = import(&dir, &Options { robot: 1, ids: false }).unwrap_err().to_string();
+        let err = import(
+            &dir,
+            &Options {
+                robot: 1,
+                ids: false,
+            },
+        )
+        .unwrap_err()
+        .to_string();
         assert!(err.contains(message), "{name} {text:?}: {err}");
         assert!(err.contains(name), "{err}");
     }
     tiny(&dir);
     std::fs::write(dir.join("Robot1_Odometry.dat"), b"100.0 0.1 0\n\xff\n").expect("writes");
-    let err = import(&dir, &Options { robot: 1, ids: false }).unwrap_err().to_string();
+    let err = import(
+        &dir,
+        &Options {
+            robot: 1,
+            ids: false,
+        },
+    )
+    .unwrap_err()
+    .to_string();
     assert!(err.contains("line 2: not UTF-8"), "{err}");
     let _ = std::fs::remove_dir_all(&dir);
 }

@@ -2,11 +2,11 @@
 //! is known exactly.
 
 use cairn_fs_tools::smoother::{SmoothError, smooth};
+use cairn_slam::estimator::EstimatorKind;
 use cairn_slam::eval::evaluate;
 use cairn_slam::files::Association;
 use cairn_slam::frontend::FrontEndConfig;
 use cairn_slam::frontend::association::AssociationMethod;
-use cairn_slam::estimator::EstimatorKind;
 use cairn_slam::sim::{Preset, SimConfig, simulate};
 use cairn_slam::trackgen::{TrackRules, random_track};
 
@@ -14,9 +14,20 @@ use cairn_slam::trackgen::{TrackRules, random_track};
 fn the_true_associations_give_the_map_to_centimetres() {
     let (track, course) = random_track(2, &TrackRules::default());
     let preset = Preset::standard();
-    let config = FrontEndConfig::for_preset(&preset, AssociationMethod::MaximumLikelihood, EstimatorKind::Graph);
+    let config = FrontEndConfig::for_preset(
+        &preset,
+        AssociationMethod::MaximumLikelihood,
+        EstimatorKind::Graph,
+    );
     for seed in [1, 2] {
-        let sim = simulate(&track, &course, &SimConfig { seed, ..SimConfig::default() });
+        let sim = simulate(
+            &track,
+            &course,
+            &SimConfig {
+                seed,
+                ..SimConfig::default()
+            },
+        );
         let smoothed = smooth(&sim.log, &sim.truth_associations, &config).expect("solves");
         let report = evaluate(
             &sim.truth_map,
@@ -34,7 +45,10 @@ fn the_true_associations_give_the_map_to_centimetres() {
         assert_eq!(report.missed, 0, "seed {seed}: {report:?}");
         assert!(report.map_rmse_aligned < 0.05, "seed {seed}: {report:?}");
         assert!(report.map_rmse < 0.25, "seed {seed}: {report:?}");
-        assert!(report.association_accuracy > 0.9999, "seed {seed}: {report:?}");
+        assert!(
+            report.association_accuracy > 0.9999,
+            "seed {seed}: {report:?}"
+        );
         assert!(smoothed.summary.final_chi2 < smoothed.summary.initial_chi2);
     }
 }
@@ -42,10 +56,33 @@ fn the_true_associations_give_the_map_to_centimetres() {
 #[test]
 fn an_association_outside_the_log_is_refused() {
     let (track, course) = random_track(2, &TrackRules::default());
-    let sim = simulate(&track, &course, &SimConfig { laps: 0.2, ..SimConfig::default() });
+    let sim = simulate(
+        &track,
+        &course,
+        &SimConfig {
+            laps: 0.2,
+            ..SimConfig::default()
+        },
+    );
     let mut associations = sim.truth_associations.clone();
-    associations.push(Association { scan: 1_000_000, det: 0, landmark: Some(0) });
+    associations.push(Association {
+        scan: 1_000_000,
+        det: 0,
+        landmark: Some(0),
+    });
     let err = smooth(&sim.log, &associations, &FrontEndConfig::default()).err();
-    assert!(matches!(err, Some(SmoothError::NotInLog { scan: 1_000_000, .. })), "{err:?}");
-    assert!(matches!(smooth(&[], &[], &FrontEndConfig::default()), Err(SmoothError::NoScan)));
+    assert!(
+        matches!(
+            err,
+            Some(SmoothError::NotInLog {
+                scan: 1_000_000,
+                ..
+            })
+        ),
+        "{err:?}"
+    );
+    assert!(matches!(
+        smooth(&[], &[], &FrontEndConfig::default()),
+        Err(SmoothError::NoScan)
+    ));
 }

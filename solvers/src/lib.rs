@@ -31,6 +31,7 @@ pub mod config;
 pub mod hessian_layout;
 pub mod initialization;
 pub mod linear;
+pub mod linear_system;
 pub mod marginals;
 pub mod optimizer;
 mod selected_inverse;
@@ -50,6 +51,7 @@ pub use initialization::{Initialization, optimize_from, spanning_tree_initialize
 pub use linear::{
     Factorization, LinearSolverConfig, NotPositiveDefinite, Ordering, SparseCholesky,
 };
+pub use linear_system::LinearSystem;
 pub use optimizer::{Optimizer, optimize};
 pub use structure::HessianStructure;
 

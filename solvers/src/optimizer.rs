@@ -219,6 +219,28 @@ impl Optimizer {
         self.structure.column[v]
     }
 
+    /// Number of stored values of the Cholesky factor L of H under the
+    /// configured ordering (none when every vertex is fixed): the fill an
+    /// ordering leaves.
+    pub fn factor_nnz(&self) -> Option<usize> {
+        self.cholesky.as_ref().map(SparseCholesky::factor_nnz)
+    }
+
+    /// H's structure.
+    pub(crate) fn structure(&self) -> &HessianStructure {
+        &self.structure
+    }
+
+    /// H's upper triangle as last assembled, in its layout's order.
+    pub(crate) fn hessian_values(&self) -> &[f64] {
+        &self.hessian
+    }
+
+    /// The gradient JᵀWe as last assembled.
+    pub(crate) fn gradient_values(&self) -> &[f64] {
+        &self.gradient
+    }
+
     /// Dimension of H.
     pub(crate) fn dimension(&self) -> usize {
         self.structure.dim

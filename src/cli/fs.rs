@@ -407,7 +407,8 @@ fn slam_config(a: &SlamArgs, kind: EstimatorKind) -> Result<FrontEndConfig, Stri
         Some(_) => return Err("--alpha values must be finite and ≥ 0".into()),
         None => None,
     };
-    let rot_trans_rot = noise == Some("rot-trans-rot") || (noise.is_none() && config.rot_trans_rot.is_some());
+    let rot_trans_rot =
+        noise == Some("rot-trans-rot") || (noise.is_none() && config.rot_trans_rot.is_some());
     config.rot_trans_rot = match (rot_trans_rot, alpha) {
         (false, Some(_)) => return Err("--alpha needs --odometry-noise rot-trans-rot".into()),
         (false, None) => None,

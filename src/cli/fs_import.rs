@@ -55,13 +55,19 @@ pub fn run(a: ImportArgs) -> Result<(), String> {
     let import = mrclam::import(&a.dir, &options).map_err(|e| e.to_string())?;
     std::fs::create_dir_all(&a.out).map_err(|e| format!("{}: {e}", a.out.display()))?;
     write_output(&a.out.join(LOG), to_jsonl(&import.log).as_bytes())?;
-    write_output(&a.out.join(TRUTH_MAP), map_to_csv(&import.truth_map).as_bytes())?;
+    write_output(
+        &a.out.join(TRUTH_MAP),
+        map_to_csv(&import.truth_map).as_bytes(),
+    )?;
     write_output(
         &a.out.join(TRUTH_ASSOC),
         files::associations_to_csv(&import.truth_associations).as_bytes(),
     )?;
     if let Some(truth) = &import.truth_trajectory {
-        write_output(&a.out.join(TRUTH_TRAJ), files::trajectory_to_tum(truth).as_bytes())?;
+        write_output(
+            &a.out.join(TRUTH_TRAJ),
+            files::trajectory_to_tum(truth).as_bytes(),
+        )?;
     }
     let c = import.counts;
     eprintln!(
@@ -120,16 +126,22 @@ pub fn run_smooth(a: SmoothArgs) -> Result<(), String> {
             .map_err(|e| format!("{}: {e}", path.display()))?,
         None => FrontEndConfig::default(),
     };
-    let smoothed =
-        smoother::smooth(&log.records, &associations, &config).map_err(|e| format!("{name}: {e}"))?;
+    let smoothed = smoother::smooth(&log.records, &associations, &config)
+        .map_err(|e| format!("{name}: {e}"))?;
     let g2o = match &a.g2o_out {
         Some(_) => Some(cairn::g2o::to_string(&smoothed.graph).map_err(|e| e.to_string())?),
         None => None,
     };
     for (path, text) in [
         (&a.map_out, Some(map_to_csv(&smoothed.map))),
-        (&a.traj_out, Some(files::trajectory_to_tum(&smoothed.trajectory))),
-        (&a.assoc_out, Some(files::associations_to_csv(&smoothed.associations))),
+        (
+            &a.traj_out,
+            Some(files::trajectory_to_tum(&smoothed.trajectory)),
+        ),
+        (
+            &a.assoc_out,
+            Some(files::associations_to_csv(&smoothed.associations)),
+        ),
         (&a.g2o_out, g2o),
     ] {
         if let (Some(path), Some(text)) = (path, text) {

@@ -8,6 +8,7 @@ mod fs_import;
 mod fs_report;
 mod fs_targets;
 mod generate;
+mod linearize;
 mod progress;
 mod solve;
 mod study;
@@ -27,6 +28,9 @@ pub struct Cli {
 enum Command {
     /// Optimise a g2o file and write the result (g2o's `g2o -o OUT FILE`).
     Solve(solve::SolveArgs),
+    /// The linear system of a g2o file (H, b, the whitened Jacobian) as Matrix
+    /// Market files, and the Cholesky factor's fill under each ordering.
+    Linearize(linearize::LinearizeArgs),
     /// Report on a g2o file: largest χ² edges, χ² histogram, indefinite or badly
     /// scaled information matrices, connected components.
     Check(check::CheckArgs),
@@ -61,6 +65,7 @@ pub fn run(cli: Cli) -> Result<(), String> {
         Command::Solve(args) => solve::run(args),
         Command::Generate(args) => generate::run(args),
         Command::Check(args) => check::run(args),
+        Command::Linearize(args) => linearize::run(args),
         Command::Corrupt(args) => corrupt::run(args),
         Command::FsSim(args) => fs::run_sim(args),
         Command::FsSlam(args) => fs::run_slam(args),
@@ -83,6 +88,22 @@ pub fn read_input(path: &std::path::Path) -> Result<Vec<u8>, String> {
         return Ok(bytes);
     }
     std::fs::read(path).map_err(|e| format!("{}: {e}", path.display()))
+}
+
+/// Fails early, before a long computation, when `path` cannot be written:
+/// its folder does not exist.
+pub fn check_writable(path: &std::path::Path) -> Result<(), String> {
+    if path.as_os_str() == "-" {
+        return Ok(());
+    }
+    match path.parent() {
+        Some(dir) if !dir.as_os_str().is_empty() && !dir.is_dir() => Err(format!(
+            "{}: the folder {} does not exist",
+            path.display(),
+            dir.display()
+        )),
+        _ => Ok(()),
+    }
 }
 
 /// Writes `bytes` to `path` atomically, or to stdout for `-`.

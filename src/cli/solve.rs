@@ -45,7 +45,7 @@ enum InitName {
 }
 
 #[derive(Clone, Copy, Debug, PartialEq, Eq, ValueEnum)]
-enum OrderingName {
+pub(super) enum OrderingName {
     /// Approximate minimum degree on the scalar pattern.
     Amd,
     /// Approximate minimum degree on the vertex graph.
@@ -54,6 +54,18 @@ enum OrderingName {
     Identity,
     /// Landmarks first (the Schur complement on the landmarks), then block AMD on the poses.
     Schur,
+}
+
+impl OrderingName {
+    /// The solver's ordering.
+    pub(super) fn ordering(self) -> Ordering {
+        match self {
+            OrderingName::Amd => Ordering::Amd,
+            OrderingName::BlockAmd => Ordering::BlockAmd,
+            OrderingName::Identity => Ordering::Identity,
+            OrderingName::Schur => Ordering::Schur,
+        }
+    }
 }
 
 #[derive(Clone, Copy, Debug, PartialEq, Eq, ValueEnum)]
@@ -378,12 +390,7 @@ fn solve(a: SolveArgs) -> Result<(), String> {
                 FactorizationName::Simplicial => Factorization::Simplicial,
                 FactorizationName::Supernodal => Factorization::Supernodal,
             },
-            ordering: match a.ordering {
-                OrderingName::Amd => Ordering::Amd,
-                OrderingName::BlockAmd => Ordering::BlockAmd,
-                OrderingName::Identity => Ordering::Identity,
-                OrderingName::Schur => Ordering::Schur,
-            },
+            ordering: a.ordering.ordering(),
             ..Default::default()
         },
         ..Default::default()

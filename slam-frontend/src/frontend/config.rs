@@ -188,20 +188,36 @@ impl FrontEndConfig {
         use Rule::*;
         let mut checks = vec![
             ("range_sigma", self.range_sigma, Positive),
-            ("range_sigma_relative", self.range_sigma_relative, NonNegative),
+            (
+                "range_sigma_relative",
+                self.range_sigma_relative,
+                NonNegative,
+            ),
             ("bearing_sigma", self.bearing_sigma, Positive),
             ("fov", self.fov, Angle),
             ("max_range", self.max_range, Above(1.0)),
             ("speed_sigma", self.speed_sigma, Positive),
-            ("speed_sigma_relative", self.speed_sigma_relative, NonNegative),
+            (
+                "speed_sigma_relative",
+                self.speed_sigma_relative,
+                NonNegative,
+            ),
             ("yaw_rate_sigma", self.yaw_rate_sigma, Positive),
             ("yaw_rate_noise", self.yaw_rate_noise, Positive),
             ("gate", self.gate, Positive),
-            ("new_landmark_gate", self.new_landmark_gate, Above(self.gate)),
+            (
+                "new_landmark_gate",
+                self.new_landmark_gate,
+                Above(self.gate),
+            ),
             ("color_penalty", self.color_penalty, NonNegative),
             ("color_wrong", self.color_wrong, Below1),
             ("color_unknown", self.color_unknown, Probability),
-            ("detection_probability", self.detection_probability, Probability),
+            (
+                "detection_probability",
+                self.detection_probability,
+                Probability,
+            ),
             ("false_positives", self.false_positives, NonNegative),
             ("confirm_after", f64::from(self.confirm_after), Above(0.5)),
         ];
@@ -211,7 +227,10 @@ impl FrontEndConfig {
         for alpha in self.rot_trans_rot.iter().flatten() {
             checks.push(("rot_trans_rot", *alpha, NonNegative));
         }
-        match checks.into_iter().find(|(_, value, rule)| !rule.holds(*value)) {
+        match checks
+            .into_iter()
+            .find(|(_, value, rule)| !rule.holds(*value))
+        {
             Some((field, value, rule)) => Err(ConfigError::Range {
                 field,
                 rule: rule.describe(),
