@@ -24,10 +24,12 @@ fn every_shipped_config_reads_and_round_trips() {
         assert_eq!(again, config, "{name}");
     }
     // A config that sets every optional part round-trips too.
-    let mut config = FrontEndConfig::default();
-    config.rot_trans_rot = Some([1e-3, 2e-5, 3e-3, 4e-4]);
-    config.motion = cairn::slam::frontend::MotionModel::Bicycle { wheelbase: 1.53 };
-    config.association = AssociationMethod::Jcbb;
+    let config = FrontEndConfig {
+        rot_trans_rot: Some([1e-3, 2e-5, 3e-3, 4e-4]),
+        motion: cairn::slam::frontend::MotionModel::Bicycle { wheelbase: 1.53 },
+        association: AssociationMethod::Jcbb,
+        ..FrontEndConfig::default()
+    };
     let text = config.to_toml();
     assert_eq!(
         FrontEndConfig::from_toml(&text).expect("reads back"),
