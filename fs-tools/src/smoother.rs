@@ -64,7 +64,7 @@ pub enum SmoothError {
 const CHUNK: usize = 100;
 
 /// Builds the graph of `log` with the landmark of every detection that
-/// `associations` gives, and solves it. The graph grows [`CHUNK`] scans at a
+/// `associations` gives, and solves it. The graph grows 100 scans at a
 /// time, each solve starting from the last one's estimate, so that the
 /// dead reckoning of a long log (metres off) never has to be undone at once;
 /// the last solve also tries the chordal starts ([`Initialization::Auto`]).

@@ -35,6 +35,9 @@ pub struct EvalArgs {
     /// Draw the map over the truth and both trajectories (SVG, or PNG by extension).
     #[arg(long)]
     plot: Option<PathBuf>,
+    /// The plot's title (default: the map's path).
+    #[arg(long)]
+    title: Option<String>,
 }
 
 pub fn run_eval(a: EvalArgs) -> Result<(), String> {
@@ -90,7 +93,7 @@ pub fn run_eval(a: EvalArgs) -> Result<(), String> {
     if let Some(path) = &a.plot {
         plot_run(
             path,
-            &a.map.display().to_string(),
+            &a.title.clone().unwrap_or_else(|| a.map.display().to_string()),
             &truth_map,
             &map,
             truth_traj.as_deref().unwrap_or_default(),

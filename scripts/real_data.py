@@ -1,0 +1,90 @@
+#!/usr/bin/env python3
+"""The real-data report: every estimator and association method on each robot
+of MRCLAM Dataset 6, with and without the barcodes as tracker ids, beside the
+batch smoother given the barcodes as associations. Writes the tables between
+the `results` markers of docs/real-data.md and a map plot per robot.
+
+  python3 scripts/real_data.py [--cairn target/release/cairn] [--shared ../shared]
+"""
+
+import argparse
+import json
+import os
+import re
+import subprocess
+import tempfile
+
+HERE = os.path.dirname(os.path.abspath(__file__))
+ROOT = os.path.dirname(HERE)
+ESTIMATORS = ["graph", "ekf", "fastslam1", "fastslam2"]
+ASSOCIATIONS = ["ml", "scnn", "jcbb"]
+
+
+def run(cmd):
+    out = subprocess.run(cmd, capture_output=True, text=True)
+    if out.returncode != 0:
+        raise SystemExit("%s failed: %s" % (" ".join(cmd), out.stderr))
+    return out
+
+
+def score(cairn, truth, folder, plot=None, title=None):
+    cmd = [cairn, "fs-eval", "--truth", truth, "--map", folder + "/map.csv",
+           "--traj", folder + "/traj.tum", "--assoc", folder + "/assoc.csv", "--json"]
+    if plot:
+        cmd += ["--plot", plot, "--title", title]
+    return json.loads(run(cmd).stdout)
+
+
+def row(label, r):
+    mapped = 15 - r["missed"]
+    return "| %s | %d | %d | %d | %.3f | %.1f%% | %.2f |" % (
+        label, r["landmarks"], mapped, r["phantom"], r["map_rmse_aligned"],
+        100 * r["association_accuracy"], r["ate"])
+
+
+def main():
+    ap = argparse.ArgumentParser()
+    ap.add_argument("--cairn", default=os.path.join(ROOT, "target/release/cairn"))
+    ap.add_argument("--shared", default=os.path.join(ROOT, "../shared"))
+    a = ap.parse_args()
+    dataset = os.path.join(a.shared, "real/mrclam/MRCLAM_Dataset6")
+    config = os.path.join(ROOT, "configs/mrclam.toml")
+    work = tempfile.mkdtemp(prefix="cairn-real-")
+    header = ("| run | landmarks | true ones mapped (of 15) | phantom | map RMSE aligned (m) "
+              "| association | ATE (m) |\n|---|---|---|---|---|---|---|")
+    sections = []
+    for robot in range(1, 6):
+        lines = ["### Robot %d\n" % robot, header]
+        plain = os.path.join(work, "r%d" % robot)
+        ids = os.path.join(work, "i%d" % robot)
+        run([a.cairn, "fs-import", "mrclam", dataset, "--robot", str(robot), "-o", plain])
+        run([a.cairn, "fs-import", "mrclam", dataset, "--robot", str(robot), "--ids", "-o", ids])
+        run([a.cairn, "fs-smooth", plain + "/log.jsonl", "--assoc", plain + "/truth_assoc.csv",
+             "--config", config, "--map-out", plain + "/map.csv", "--traj-out", plain + "/traj.tum",
+             "--assoc-out", plain + "/assoc.csv"])
+        lines.append(row("batch smoother, barcodes as associations", score(a.cairn, plain, plain)))
+        for folder, methods, tag in [(plain, ASSOCIATIONS, ""), (ids, ["tracking"], ", `--ids`")]:
+            for estimator in ESTIMATORS:
+                for method in methods:
+                    run([a.cairn, "fs-slam", folder + "/log.jsonl", "--config", config,
+                         "--estimator", estimator, "--association", method,
+                         "--map-out", folder + "/map.csv", "--traj-out", folder + "/traj.tum",
+                         "--assoc-out", folder + "/assoc.csv"])
+                    plot = title = None
+                    if estimator == "graph" and method == "ml" and folder == plain:
+                        plot = os.path.join(ROOT, "docs/real-data/robot%d.png" % robot)
+                        title = "MRCLAM Dataset 6, robot %d: graph SLAM, ml" % robot
+                    r = score(a.cairn, plain, folder, plot, title)
+                    lines.append(row("%s, %s%s" % (estimator, method, tag), r))
+        sections.append("\n".join(lines))
+        print("robot %d done" % robot)
+    doc = os.path.join(ROOT, "docs/real-data.md")
+    text = open(doc).read()
+    text = re.sub(r"(<!-- results -->\n).*(<!-- /results -->)",
+                  lambda m: m.group(1) + "\n\n".join(sections) + "\n" + m.group(2),
+                  text, flags=re.S)
+    open(doc, "w").write(text)
+
+
+if __name__ == "__main__":
+    main()
