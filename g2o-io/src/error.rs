@@ -9,6 +9,24 @@ pub enum LineError {
     /// The line is not valid UTF-8.
     #[error("not valid UTF-8 text")]
     NotUtf8,
+    /// A space that is not ASCII (a no-break space, U+00A0, from a word
+    /// processor): g2o separates fields with ASCII spaces and tabs only.
+    #[error("a non-ASCII space (U+{code:04X}) where g2o expects ASCII spaces or tabs")]
+    NonAsciiSpace {
+        /// The character's code point.
+        code: u32,
+    },
+    /// A `LANDMARK2` landmark id that is negative, or past the ids the
+    /// graph can give landmarks after its highest vertex id.
+    #[error(
+        "LANDMARK2 landmark id {landmark} cannot be placed after vertex id {highest} (landmark ids are ≥ 0 and the sum must fit 64 bits)"
+    )]
+    LandmarkIdOutOfRange {
+        /// The landmark's id in the file.
+        landmark: i64,
+        /// The highest vertex id of the graph.
+        highest: i64,
+    },
     /// Fewer fields than the tag needs.
     #[error("{tag} needs {expected} fields after the tag, found {found}")]
     MissingFields {

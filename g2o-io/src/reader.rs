@@ -194,10 +194,19 @@ impl<'a> Reader<'a> {
     }
 
     fn run(mut self) -> Result<(Graph, LoadReport), G2oError> {
-        let mut rest = self.bytes;
+        // A UTF-8 byte-order mark (Windows editors) is not part of the first line.
+        let mut rest = self
+            .bytes
+            .strip_prefix(b"\xEF\xBB\xBF")
+            .unwrap_or(self.bytes);
         let mut number = 0;
         while !rest.is_empty() {
-            let (raw, next) = match memchr::memchr(b'\n', rest) {
+            // Lines end in LF, CRLF, or CR alone (classic Mac files, which
+            // would otherwise read as one line).
+            let (raw, next) = match memchr::memchr2(b'\n', b'\r', rest) {
+                Some(end) if rest[end] == b'\r' && rest.get(end + 1) == Some(&b'\n') => {
+                    (&rest[..end], &rest[end + 2..])
+                }
                 Some(end) => (&rest[..end], &rest[end + 1..]),
                 None => (rest, &rest[rest.len()..]),
             };
@@ -214,6 +223,11 @@ impl<'a> Reader<'a> {
 
     fn line(&mut self, raw: &'a [u8]) -> Result<(), LineError> {
         let text = std::str::from_utf8(raw).map_err(|_| LineError::NotUtf8)?;
+        if !text.is_ascii()
+            && let Some(c) = text.chars().find(|c| c.is_whitespace() && !c.is_ascii())
+        {
+            return Err(LineError::NonAsciiSpace { code: u32::from(c) });
+        }
         let mut tokens = text.split_ascii_whitespace();
         let Some(tag) = tokens.next() else {
             return Ok(());
@@ -390,20 +404,19 @@ impl<'a> Reader<'a> {
 
     fn finish(mut self) -> Result<(Graph, LoadReport), G2oError> {
         if !self.landmarks.is_empty() {
-            let offset = self
-                .graph
-                .vertices()
-                .map(|v| v.id)
-                .max()
-                .map_or(0, |m| m + 1);
-            self.report.landmark_id_offset = Some(offset);
+            let highest = self.graph.vertices().map(|v| v.id).max();
+            let offset = highest.map_or(Some(0), |m| m.checked_add(1));
+            self.report.landmark_id_offset = offset;
             let landmarks = std::mem::take(&mut self.landmarks);
             for lm in landmarks {
                 let result = (|| -> Result<(), LineError> {
-                    let id = offset.checked_add(lm.landmark).ok_or(LineError::BadId {
-                        field: 2,
-                        text: lm.landmark.to_string(),
-                    })?;
+                    let id = offset
+                        .filter(|_| lm.landmark >= 0)
+                        .and_then(|o| o.checked_add(lm.landmark))
+                        .ok_or(LineError::LandmarkIdOutOfRange {
+                            landmark: lm.landmark,
+                            highest: highest.unwrap_or(0),
+                        })?;
                     // Landmarks never have VERTEX lines of their own.
                     self.ensure_vertex::<Vector2<f64>, 2>(id, true)?;
                     self.ensure_vertex::<SE2, 3>(lm.pose, self.create_vertices)?;

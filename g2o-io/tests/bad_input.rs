@@ -227,3 +227,71 @@ fn unknown_tags_are_counted_by_tag() {
     assert_eq!(counts, [("PARAMS_X", 1), ("VERTEX_TRACKXYZ", 2)]);
     assert_eq!(r.unknown_lines(), 3);
 }
+
+/// Line endings of every platform read the same records, with the same line
+/// numbers; a UTF-8 byte-order mark is not part of the first line.
+#[test]
+fn cr_crlf_lf_and_a_byte_order_mark_read_alike() {
+    let good = "VERTEX_SE2 0 0 0 0\nVERTEX_SE2 1 1 0 0\nEDGE_SE2 0 1 1 0 0 1 0 0 1 0 1\n";
+    let bad = format!("{good}VERTEX_SE2 x 0 0 0\n");
+    let kinds: [fn(&str) -> String; 4] = [
+        |t| t.to_string(),
+        |t| t.replace('\n', "\r\n"),
+        |t| t.replace('\n', "\r"),
+        |t| format!("\u{feff}{t}"),
+    ];
+    for kind in kinds {
+        let text = kind(good);
+        let (graph, _) = read_bytes(text.as_bytes(), &ReadOptions::default()).expect("reads");
+        assert_eq!(
+            (graph.num_vertices(), graph.num_edges()),
+            (2, 1),
+            "{text:?}"
+        );
+        let (line, e) = line_error(&kind(&bad));
+        assert_eq!(line, 4, "{text:?}");
+        assert!(matches!(e, LineError::BadId { .. }), "{e}");
+    }
+}
+
+#[test]
+fn a_non_ascii_space_is_named() {
+    let (line, e) = line_error("VERTEX_SE2 0 0 0 0\nVERTEX_SE2\u{a0}1 1 0 0\n");
+    assert_eq!((line, e), (2, LineError::NonAsciiSpace { code: 0xa0 }));
+}
+
+/// LANDMARK2 ids go after the highest vertex id: a negative one, or one
+/// past i64::MAX, is refused instead of wrapping onto a pose.
+#[test]
+fn landmark_ids_that_do_not_fit_are_refused() {
+    let (line, e) =
+        line_error("VERTEX_SE2 0 0 0 0\nVERTEX_SE2 2 0 0 0\nLANDMARK2 0 -2 1 0 1 0 1\n");
+    assert_eq!(
+        (line, e),
+        (
+            3,
+            LineError::LandmarkIdOutOfRange {
+                landmark: -2,
+                highest: 2
+            }
+        )
+    );
+    let max = i64::MAX;
+    let (line, e) = line_error(&format!(
+        "VERTEX_SE2 {max} 0 0 0\nLANDMARK2 {max} 0 1 0 1 0 1\n"
+    ));
+    assert_eq!(
+        (line, e),
+        (
+            2,
+            LineError::LandmarkIdOutOfRange {
+                landmark: 0,
+                highest: max
+            }
+        )
+    );
+    let (line, _) = line_error(&format!(
+        "VERTEX_SE2 5 0 0 0\nLANDMARK2 5 {max} 1 0 1 0 1\n"
+    ));
+    assert_eq!(line, 2);
+}

@@ -22,6 +22,13 @@ const STEP: f64 = 0.25;
 /// Most points a resampled course may have (1,000 km every 10 cm).
 const MAX_RESAMPLED: usize = 10_000_000;
 
+/// The longest course the simulator drives (m): an endurance event is 22 km
+/// of laps on a course under 2 km.
+pub const MAX_LENGTH: f64 = 50_000.0;
+
+/// The shortest (m).
+pub const MIN_LENGTH: f64 = 1.0;
+
 impl Course {
     /// A course through `points`; a closed one joins the last point to the first.
     pub fn new(points: Vec<Vector2<f64>>, closed: bool) -> Result<Course, String> {
@@ -41,6 +48,11 @@ impl Course {
         } else {
             s
         };
+        if !(MIN_LENGTH..=MAX_LENGTH).contains(&length) {
+            return Err(format!(
+                "the course is {length} m long; the simulator drives courses of {MIN_LENGTH} to {MAX_LENGTH} m"
+            ));
+        }
         Ok(Course {
             points,
             arc,
@@ -62,6 +74,11 @@ impl Course {
                     .iter()
                     .map(|c| (c.position - track.start.t).dot(&dir))
                     .fold(0.0, f64::max);
+                if !(MIN_LENGTH..=MAX_LENGTH).contains(&end) {
+                    return Err(format!(
+                        "the straight is {end} m long; the simulator drives courses of {MIN_LENGTH} to {MAX_LENGTH} m"
+                    ));
+                }
                 let n = (end / STEP).ceil().max(1.0) as usize;
                 let points = (0..=n)
                     .map(|k| track.start.t + dir * (end * k as f64 / n as f64))
@@ -127,7 +144,7 @@ impl Course {
         };
         let i = match self.arc.binary_search_by(|a| a.total_cmp(&s)) {
             Ok(i) => i,
-            Err(i) => i - 1,
+            Err(i) => i.saturating_sub(1),
         };
         let a = self.points[i];
         let b = if i + 1 < self.points.len() {

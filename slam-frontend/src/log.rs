@@ -99,19 +99,32 @@ impl Log {
     /// non-finite numbers, time going backwards) are skipped and listed in
     /// [`Log::skipped`]; without it the first one is an error.
     pub fn parse(text: &str, skip_bad: bool) -> Result<Log, LogError> {
+        Self::parse_bytes(text.as_bytes(), skip_bad)
+    }
+
+    /// [`Log::parse`] on the bytes of a file: a line that is not UTF-8 is
+    /// a bad line like any other (skipped under `skip_bad`).
+    pub fn parse_bytes(bytes: &[u8], skip_bad: bool) -> Result<Log, LogError> {
         let mut log = Log::default();
         let mut last_t = f64::NEG_INFINITY;
-        for (i, raw) in text.lines().enumerate() {
+        for (i, raw) in bytes.split(|&b| b == b'\n').enumerate() {
             let line = i + 1;
-            if raw.trim().is_empty() {
-                continue;
-            }
-            match parse_line(raw, last_t) {
-                Ok(Some(record)) => {
+            let parsed = std::str::from_utf8(raw)
+                .map_err(|_| "not UTF-8 text".to_string())
+                .and_then(|raw| {
+                    let raw = raw.strip_suffix('\r').unwrap_or(raw);
+                    if raw.trim().is_empty() {
+                        return Ok(None);
+                    }
+                    parse_line(raw, last_t).map(|r| Some((raw, r)))
+                });
+            match parsed {
+                Ok(None) => {}
+                Ok(Some((_, Some(record)))) => {
                     last_t = record.time();
                     log.records.push(record);
                 }
-                Ok(None) => {
+                Ok(Some((raw, None))) => {
                     let kind = serde_json::from_str::<Value>(raw)
                         .ok()
                         .and_then(|v| v.get("type").and_then(Value::as_str).map(str::to_string))
@@ -142,7 +155,7 @@ fn finite(obj: &Map<String, Value>, key: &str) -> Result<Option<f64>, String> {
                 .as_f64()
                 .ok_or_else(|| format!("'{key}' is not a number"))?;
             if x.is_finite() {
-                Ok(Some(x))
+                bounded(key, x).map(Some)
             } else {
                 Err(format!("'{key}' is not finite"))
             }
@@ -152,6 +165,33 @@ fn finite(obj: &Map<String, Value>, key: &str) -> Result<Option<f64>, String> {
 
 fn required(obj: &Map<String, Value>, key: &str) -> Result<f64, String> {
     finite(obj, key)?.ok_or_else(|| format!("missing '{key}'"))
+}
+
+/// The largest magnitude each field may have: past these a record is no
+/// vehicle's and integrating it overflows (a speed of 10³⁰⁸ m/s makes the
+/// trajectory NaN).
+const LIMITS: [(&str, f64); 11] = [
+    ("t", 1e11),
+    ("x", 1e5),
+    ("y", 1e5),
+    ("yaw", 1e3),
+    ("v", 1e3),
+    ("yaw_rate", 1e2),
+    ("steer", 10.0),
+    ("vy", 1e3),
+    ("r", 1e4),
+    ("b", 1e3),
+    ("cov", 1e6),
+];
+
+/// `value` of field `key`, refused beyond its [`LIMITS`].
+fn bounded(key: &str, value: f64) -> Result<f64, String> {
+    match LIMITS.iter().find(|(k, _)| *k == key) {
+        Some((_, limit)) if value.abs() > *limit => {
+            Err(format!("'{key}' is {value:e}, beyond ±{limit:e}"))
+        }
+        _ => Ok(value),
+    }
 }
 
 /// Parses one line: `Ok(None)` for an unknown type.
@@ -210,8 +250,12 @@ fn parse_line(raw: &str, last_t: f64) -> Result<Option<Record>, String> {
                 for (j, c) in coords.iter().enumerate() {
                     xyz[j] = c
                         .as_f64()
-                        .filter(|x| x.is_finite())
-                        .ok_or_else(|| format!("point {k} has a bad coordinate"))?;
+                        .filter(|x| x.is_finite() && x.abs() <= 1e4)
+                        .ok_or_else(|| {
+                            format!(
+                                "point {k} has a bad coordinate (not a number, or beyond ±1e4 m)"
+                            )
+                        })?;
                 }
                 points.push(xyz);
             }
@@ -254,7 +298,10 @@ fn parse_detection(value: &Value) -> Result<Detection, String> {
                 s[k] = x
                     .as_f64()
                     .filter(|x| x.is_finite())
-                    .ok_or("'cov' has a bad number")?;
+                    .ok_or("'cov' has a bad number")
+                    .and_then(|x| {
+                        bounded("cov", x).map_err(|_| "'cov' has a number beyond ±1e6")
+                    })?;
             }
             let m = Matrix2::new(s[0], s[1], s[1], s[2]);
             if s[0] <= 0.0 || m.determinant() <= 0.0 {

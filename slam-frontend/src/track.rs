@@ -151,17 +151,33 @@ impl Track {
     }
 }
 
+/// Coordinates farther than this from the origin (m) are refused: a track
+/// or map is a few kilometres across, and the course and simulation built on
+/// it grow with its size.
+pub const MAX_COORDINATE: f64 = 1e5;
+
+/// A coordinate: a number within [`MAX_COORDINATE`] of zero.
 fn number(field: Option<&str>, line: usize, what: &str) -> Result<f64, TrackError> {
     let field = field.ok_or_else(|| parse_error(line, format!("missing {what}")))?;
     let field = field.trim();
     if field.is_empty() {
-        return Ok(0.0);
+        return Err(parse_error(line, format!("{what} is empty")));
     }
     let value: f64 = field
         .parse()
         .map_err(|_| parse_error(line, format!("{what} '{field}' is not a number")))?;
+    coordinate(value, line, what)
+}
+
+fn coordinate(value: f64, line: usize, what: &str) -> Result<f64, TrackError> {
     if !value.is_finite() {
         return Err(parse_error(line, format!("{what} is not finite")));
+    }
+    if value.abs() > MAX_COORDINATE {
+        return Err(parse_error(
+            line,
+            format!("{what} {value:e} is more than {MAX_COORDINATE:e} m from the origin"),
+        ));
     }
     Ok(value)
 }
@@ -189,7 +205,10 @@ fn parse_eufs_csv(text: &str) -> Result<Track, TrackError> {
         let direction = fields.next();
         match tag {
             "car_start" => {
-                let yaw = number(direction.or(Some("")), line, "direction")?;
+                let yaw = match direction.map(str::trim) {
+                    None | Some("") => 0.0,
+                    Some(_) => number(direction, line, "direction")?,
+                };
                 track.start = SE2::new(x, y, yaw);
             }
             "inactive_noise" => track.clutter.push(Vector2::new(x, y)),
@@ -209,6 +228,13 @@ fn parse_eufs_csv(text: &str) -> Result<Track, TrackError> {
                         .unwrap_or(0.0);
                 }
                 cone.covariance = Matrix2::new(variance[0], variance[2], variance[2], variance[1]);
+                let [sxx, syy, sxy] = variance;
+                if sxx < 0.0 || syy < 0.0 || sxy * sxy > sxx * syy {
+                    return Err(parse_error(
+                        line,
+                        "the variances are not a covariance (negative, or |xy| > √(xx·yy))",
+                    ));
+                }
                 track.cones.push(cone);
             }
         }
@@ -294,9 +320,7 @@ fn parse_fssim_yaml(text: &str) -> Result<Track, TrackError> {
             .trim()
             .parse()
             .map_err(|_| parse_error(line, format!("'{}' is not a number", value.trim())))?;
-        if !v.is_finite() {
-            return Err(parse_error(line, "not finite"));
-        }
+        let v = coordinate(v, line, "the value")?;
         if new_item || items.is_empty() {
             items.push(Vec::new());
         }

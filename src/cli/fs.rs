@@ -245,7 +245,8 @@ pub fn run_sim(a: SimArgs) -> Result<(), String> {
 
 pub fn run_slam(a: SlamArgs) -> Result<(), String> {
     let name = a.log.display().to_string();
-    let log = Log::parse(&read_text(&a.log)?, a.skip_bad).map_err(|e| format!("{name}: {e}"))?;
+    let log = Log::parse_bytes(&super::read_input(&a.log)?, a.skip_bad)
+        .map_err(|e| format!("{name}: {e}"))?;
     for (line, message) in &log.skipped {
         eprintln!("{name}: skipped line {line}: {message}");
     }
@@ -260,7 +261,15 @@ pub fn run_slam(a: SlamArgs) -> Result<(), String> {
     }
     let map = match &a.map_in {
         Some(path) => {
-            Some(map_from_csv(&read_text(path)?).map_err(|e| format!("{}: {e}", path.display()))?)
+            let map =
+                map_from_csv(&read_text(path)?).map_err(|e| format!("{}: {e}", path.display()))?;
+            if map.is_empty() {
+                return Err(format!(
+                    "{}: the map has no cones to localise on",
+                    path.display()
+                ));
+            }
+            Some(map)
         }
         None => None,
     };
@@ -306,8 +315,22 @@ pub fn run_slam(a: SlamArgs) -> Result<(), String> {
         eprintln!("warning: {warning}");
     }
     // Everything is computed before anything is written, so a failure leaves no partial output.
-    let map = map_to_csv(&slam.map());
-    let traj = files::trajectory_to_tum(&slam.trajectory());
+    let (cones, poses) = (slam.map(), slam.trajectory());
+    let finite = cones.iter().all(|c| {
+        c.position
+            .iter()
+            .chain(c.covariance.iter())
+            .all(|x| x.is_finite())
+    }) && poses
+        .iter()
+        .all(|p| p.pose.t.iter().all(|x| x.is_finite()) && p.pose.theta.is_finite());
+    if !finite {
+        return Err(format!(
+            "{name}: the estimate is not finite (NaN or infinite); nothing written"
+        ));
+    }
+    let map = map_to_csv(&cones);
+    let traj = files::trajectory_to_tum(&poses);
     let assoc = files::associations_to_csv(&associations);
     let timing = serde_json::json!({
         "updates_s": slam.timing().updates,

@@ -93,7 +93,9 @@ pub fn run_eval(a: EvalArgs) -> Result<(), String> {
     if let Some(path) = &a.plot {
         plot_run(
             path,
-            &a.title.clone().unwrap_or_else(|| a.map.display().to_string()),
+            &a.title
+                .clone()
+                .unwrap_or_else(|| a.map.display().to_string()),
             &truth_map,
             &map,
             truth_traj.as_deref().unwrap_or_default(),
