@@ -8,7 +8,7 @@ use cairn_core::{
 use nalgebra::Vector2;
 use std::any::TypeId;
 use std::io::Write;
-use std::path::Path;
+use std::path::{Path, PathBuf};
 
 /// Appends ` v` in the shortest form that reads back to the same `f64`
 /// (exponents for very large or small values, as `1e+16` and `1e-7`).
@@ -120,25 +120,100 @@ pub fn write_file(graph: &Graph, path: impl AsRef<Path>) -> Result<(), G2oError>
     write_atomically(path.as_ref(), text.as_bytes())
 }
 
-/// Replaces `path` by `bytes` atomically (temporary file, fsync, rename).
+/// Writes `bytes` to `path` so that it never holds a partial result:
+/// - a regular file (or a new one) is replaced atomically: a temporary file
+///   beside it, fsync, rename; the replaced file's permissions are kept;
+/// - a symbolic link is followed, and its target replaced so;
+/// - anything else (a FIFO, a device such as `/dev/null`) is written to
+///   directly, never replaced by a regular file.
+///
+/// Temporary files that a killed run left beside the target (`.NAME.PID.tmp`
+/// of a process that no longer runs) are removed first, where `/proc` tells.
 pub fn write_atomically(path: &Path, bytes: &[u8]) -> Result<(), G2oError> {
-    let dir = match path.parent() {
-        Some(d) if !d.as_os_str().is_empty() => d,
-        _ => Path::new("."),
+    let target = follow_links(path).map_err(|e| G2oError::io(path, e))?;
+    match std::fs::metadata(&target) {
+        Ok(meta) if meta.is_dir() => {
+            return Err(G2oError::io(
+                path,
+                std::io::Error::new(std::io::ErrorKind::IsADirectory, "is a folder"),
+            ));
+        }
+        Ok(meta) if !meta.is_file() => {
+            let result = std::fs::OpenOptions::new()
+                .write(true)
+                .open(&target)
+                .and_then(|mut f| f.write_all(bytes));
+            return result.map_err(|e| G2oError::io(path, e));
+        }
+        _ => {}
+    }
+    let dir = match target.parent() {
+        Some(d) if !d.as_os_str().is_empty() => d.to_path_buf(),
+        _ => PathBuf::from("."),
     };
-    let name = path
+    let name = target
         .file_name()
         .map(|n| n.to_string_lossy().into_owned())
         .unwrap_or_else(|| "output".into());
+    remove_stale_temporaries(&dir, &name);
     let tmp = dir.join(format!(".{name}.{}.tmp", std::process::id()));
+    let permissions = std::fs::metadata(&target).ok().map(|m| m.permissions());
     let result = (|| {
         let mut file = std::fs::File::create(&tmp)?;
         file.write_all(bytes)?;
+        if let Some(p) = permissions {
+            file.set_permissions(p)?;
+        }
         file.sync_all()?;
-        std::fs::rename(&tmp, path)
+        std::fs::rename(&tmp, &target)
     })();
     result.map_err(|e| {
         let _ = std::fs::remove_file(&tmp);
         G2oError::io(path, e)
     })
+}
+
+/// `path` with symbolic links followed (at most 40, as Linux allows); a
+/// dangling link gives the path it points to.
+fn follow_links(path: &Path) -> std::io::Result<PathBuf> {
+    let mut path = path.to_path_buf();
+    for _ in 0..40 {
+        match std::fs::symlink_metadata(&path) {
+            Ok(meta) if meta.file_type().is_symlink() => {
+                let link = std::fs::read_link(&path)?;
+                path = match path.parent() {
+                    Some(dir) if link.is_relative() => dir.join(link),
+                    _ => link,
+                };
+            }
+            _ => return Ok(path),
+        }
+    }
+    Err(std::io::Error::other("too many levels of symbolic links"))
+}
+
+/// Removes `.NAME.PID.tmp` in `dir` whose process is gone (Linux's `/proc`
+/// says; elsewhere nothing is removed).
+fn remove_stale_temporaries(dir: &Path, name: &str) {
+    if !Path::new("/proc/self").exists() {
+        return;
+    }
+    let Ok(entries) = std::fs::read_dir(dir) else {
+        return;
+    };
+    let prefix = format!(".{name}.");
+    for entry in entries.flatten() {
+        let file = entry.file_name();
+        let Some(pid) = file
+            .to_str()
+            .and_then(|f| f.strip_prefix(&prefix))
+            .and_then(|f| f.strip_suffix(".tmp"))
+            .and_then(|p| p.parse::<u32>().ok())
+        else {
+            continue;
+        };
+        if pid != std::process::id() && !Path::new(&format!("/proc/{pid}")).exists() {
+            let _ = std::fs::remove_file(entry.path());
+        }
+    }
 }

@@ -13,10 +13,11 @@ pub struct CorruptArgs {
     /// Output g2o file (`-` for stdout).
     #[arg(short, long, default_value = "-")]
     output: PathBuf,
-    /// False loop closures to add, as a fraction of the file's edges.
+    /// False loop closures to add, as a fraction of the file's edges (0 to 10).
     #[arg(long, default_value_t = 0.1)]
     fraction: f64,
-    /// Their translations are uniform in ±SPREAD metres per axis.
+    /// Their translations are uniform in ±SPREAD metres per axis (above 0, at
+    /// most 10⁶).
     #[arg(long, default_value_t = 10.0)]
     spread: f64,
     /// Random seed.
@@ -25,13 +26,22 @@ pub struct CorruptArgs {
 }
 
 pub fn run(a: CorruptArgs) -> Result<(), String> {
+    if !(0.0..=10.0).contains(&a.fraction) {
+        return Err(format!(
+            "--fraction must be from 0 to 10, got {}",
+            a.fraction
+        ));
+    }
+    if !(a.spread > 0.0 && a.spread <= 1e6) {
+        return Err(format!(
+            "--spread must be above 0 and at most 1e6 m, got {:e}",
+            a.spread
+        ));
+    }
     let name = a.file.display().to_string();
     let bytes = super::read_input(&a.file)?;
     let (mut graph, _) = cairn::g2o::read_bytes(&bytes, &ReadOptions::default())
         .map_err(|e| format!("{name}: {e}"))?;
-    if a.fraction.is_nan() || a.fraction < 0.0 || a.spread.is_nan() || a.spread <= 0.0 {
-        return Err("--fraction must be at least 0 and --spread positive".into());
-    }
     let added = add_false_loop_closures(&mut graph, a.fraction, a.spread, a.seed)
         .map_err(|e| e.to_string())?;
     let text = cairn::g2o::to_string(&graph).map_err(|e| e.to_string())?;

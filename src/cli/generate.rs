@@ -21,8 +21,9 @@ pub struct GenerateArgs {
     /// Output g2o file (`-` for stdout).
     #[arg(short, long, default_value = "-")]
     output: PathBuf,
-    /// Number of poses (sphere: rounded to whole rings of √N poses).
-    #[arg(short = 'n', long, default_value_t = 3500)]
+    /// Number of poses, 2 to 10⁷ (sphere: rounded to whole rings of √N poses).
+    #[arg(short = 'n', long, default_value_t = 3500,
+          value_parser = clap::builder::RangedU64ValueParser::<usize>::new().range(2..=10_000_000))]
     poses: usize,
     /// Translation noise σ in metres.
     #[arg(long, default_value_t = 0.05)]

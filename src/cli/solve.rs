@@ -153,10 +153,11 @@ pub struct SolveArgs {
     /// Fill-reducing ordering.
     #[arg(long, value_enum, default_value = "block-amd")]
     ordering: OrderingName,
-    /// Worker threads (0: one per core). Only graphs with millions of
-    /// Jacobian-block entries are linearised in parallel; results are the
-    /// same for any number.
-    #[arg(long, default_value_t = 0)]
+    /// Worker threads, 0 to 1024 (0: one per core). Only graphs with
+    /// millions of Jacobian-block entries are linearised in parallel;
+    /// results are the same for any number.
+    #[arg(long, default_value_t = 0,
+          value_parser = clap::builder::RangedU64ValueParser::<usize>::new().range(0..=1024))]
     threads: usize,
     /// Print the marginal covariances of these vertex ids (comma-separated),
     /// or of every vertex not held fixed with `all`, at the optimum, in each
@@ -199,6 +200,55 @@ fn start_name(init: Initialization) -> &'static str {
         Initialization::ChordalIsotropic => "chordal-isotropic",
         Initialization::Auto => "auto",
     }
+}
+
+/// Refuses, before the solve, outputs that cannot be written (a missing
+/// folder) and two outputs naming one file, which would overwrite each other.
+fn check_outputs(a: &SolveArgs) -> Result<(), String> {
+    let named: Vec<(&str, &PathBuf)> = [
+        ("-o", &a.output),
+        ("--stats", &a.stats),
+        ("--summary", &a.summary),
+    ]
+    .into_iter()
+    .filter_map(|(flag, p)| p.as_ref().map(|p| (flag, p)))
+    .filter(|(_, p)| p.as_os_str() != "-")
+    .collect();
+    for (_, path) in &named {
+        super::check_writable(path)?;
+    }
+    let same = |p: &PathBuf, q: &PathBuf| {
+        p == q
+            || matches!((std::fs::canonicalize(p), std::fs::canonicalize(q)), (Ok(a), Ok(b)) if a == b)
+    };
+    for (k, (flag, path)) in named.iter().enumerate() {
+        if let Some((other, _)) = named[k + 1..].iter().find(|(_, q)| same(path, q)) {
+            return Err(format!("{flag} and {other} both name {}", path.display()));
+        }
+    }
+    Ok(())
+}
+
+/// Appends `row` to the summary file, with the header if the file is new
+/// or empty. The file is locked while the row is written in one call, so
+/// runs appending at once keep every row; nothing already there is read
+/// or rewritten.
+fn append_summary(path: &std::path::Path, row: &str) -> Result<(), String> {
+    use std::io::Write;
+    let error = |e: std::io::Error| format!("{}: {e}", path.display());
+    let mut file = std::fs::OpenOptions::new()
+        .append(true)
+        .create(true)
+        .open(path)
+        .map_err(error)?;
+    file.lock().map_err(error)?;
+    let empty = file.metadata().map_err(error)?.len() == 0;
+    let text = if empty {
+        format!("{SUMMARY_HEADER}{row}")
+    } else {
+        row.to_string()
+    };
+    file.write_all(text.as_bytes()).map_err(error)
 }
 
 fn stats_csv(summary: &Summary) -> String {
@@ -322,6 +372,7 @@ pub fn run(a: SolveArgs) -> Result<(), String> {
 /// `cairn solve`, on the calling thread.
 fn solve(a: SolveArgs) -> Result<(), String> {
     let name = a.file.display().to_string();
+    check_outputs(&a)?;
     let t = Instant::now();
     let options = ReadOptions {
         repair_information: a.repair_information,
@@ -465,12 +516,7 @@ fn solve(a: SolveArgs) -> Result<(), String> {
         super::write_output(path, stats_csv(&summary).as_bytes())?;
     }
     if let Some(path) = &a.summary {
-        let mut text = std::fs::read_to_string(path).unwrap_or_default();
-        if text.is_empty() {
-            text.push_str(SUMMARY_HEADER);
-        }
-        text.push_str(&summary_row(&name, vertices, edges, &summary, &times));
-        super::write_output(path, text.as_bytes())?;
+        append_summary(path, &summary_row(&name, vertices, edges, &summary, &times))?;
     }
     if a.json {
         let value = serde_json::json!({

@@ -1,0 +1,182 @@
+//! What `cairn` writes, where a hostile or careless user points it:
+//! devices, FIFOs and links are not replaced, modes are kept, leftovers of
+//! killed runs are cleared, concurrent `--summary` rows all land, and
+//! out-of-range options are refused by name.
+
+use std::os::unix::fs::{PermissionsExt, symlink};
+use std::path::{Path, PathBuf};
+use std::process::{Command, Output};
+
+const GRAPH: &str = "VERTEX_SE2 0 0 0 0\nVERTEX_SE2 1 1.1 0 0\nEDGE_SE2 0 1 1 0 0 1 0 0 1 0 1\n";
+
+fn cairn(args: &[&str]) -> Output {
+    Command::new(env!("CARGO_BIN_EXE_cairn"))
+        .args(args)
+        .output()
+        .expect("runs")
+}
+
+fn folder(name: &str) -> PathBuf {
+    let dir = std::env::temp_dir().join(format!("cairn-out-{name}-{}", std::process::id()));
+    let _ = std::fs::remove_dir_all(&dir);
+    std::fs::create_dir_all(&dir).expect("a temporary folder");
+    std::fs::write(dir.join("in.g2o"), GRAPH).expect("writes");
+    dir
+}
+
+fn s(p: &Path) -> &str {
+    p.to_str().expect("UTF-8")
+}
+
+fn solve_to(dir: &Path, out: &Path) -> Output {
+    cairn(&["solve", "-q", s(&dir.join("in.g2o")), "-o", s(out)])
+}
+
+#[test]
+fn links_modes_fifos_and_leftovers() {
+    let dir = folder("kinds");
+    // A link is followed: its target gets the result, the link stays.
+    std::fs::write(dir.join("target.g2o"), "old").unwrap();
+    symlink("target.g2o", dir.join("link.g2o")).unwrap();
+    assert!(solve_to(&dir, &dir.join("link.g2o")).status.success());
+    assert!(
+        std::fs::symlink_metadata(dir.join("link.g2o"))
+            .unwrap()
+            .file_type()
+            .is_symlink()
+    );
+    assert!(
+        std::fs::read_to_string(dir.join("target.g2o"))
+            .unwrap()
+            .contains("EDGE_SE2")
+    );
+    // A replaced file keeps its mode.
+    let private = dir.join("private.g2o");
+    std::fs::write(&private, "old").unwrap();
+    std::fs::set_permissions(&private, std::fs::Permissions::from_mode(0o600)).unwrap();
+    assert!(solve_to(&dir, &private).status.success());
+    assert_eq!(
+        std::fs::metadata(&private).unwrap().permissions().mode() & 0o777,
+        0o600
+    );
+    // A temporary file of a process that is gone is removed by the next write.
+    let stale = dir.join(".private.g2o.4000000000.tmp");
+    std::fs::write(&stale, "half a file").unwrap();
+    assert!(solve_to(&dir, &private).status.success());
+    assert!(!stale.exists());
+    // A FIFO is written into, not replaced by a regular file.
+    let fifo = dir.join("fifo");
+    if Command::new("mkfifo")
+        .arg(&fifo)
+        .status()
+        .is_ok_and(|s| s.success())
+    {
+        let reader = std::thread::spawn({
+            let fifo = fifo.clone();
+            move || std::fs::read_to_string(fifo).unwrap()
+        });
+        assert!(solve_to(&dir, &fifo).status.success());
+        assert!(reader.join().unwrap().contains("EDGE_SE2"));
+        assert!(!std::fs::metadata(&fifo).unwrap().is_file());
+    }
+    // -o and --stats on one file would overwrite each other.
+    let o = cairn(&[
+        "solve",
+        s(&dir.join("in.g2o")),
+        "-o",
+        s(&private),
+        "--stats",
+        s(&private),
+    ]);
+    let said = String::from_utf8_lossy(&o.stderr);
+    assert!(
+        !o.status.success() && said.contains("-o and --stats both name"),
+        "{said}"
+    );
+    let _ = std::fs::remove_dir_all(&dir);
+}
+
+#[test]
+fn summary_rows_of_concurrent_runs_all_land_and_old_rows_stay() {
+    let dir = folder("summary");
+    let summary = dir.join("runs.csv");
+    std::fs::write(&summary, b"file,algorithm\nold,caf\xe9\n").unwrap();
+    let runs: Vec<_> = (0..12)
+        .map(|_| {
+            Command::new(env!("CARGO_BIN_EXE_cairn"))
+                .args([
+                    "solve",
+                    "-q",
+                    s(&dir.join("in.g2o")),
+                    "--summary",
+                    s(&summary),
+                ])
+                .spawn()
+                .expect("starts")
+        })
+        .collect();
+    for mut run in runs {
+        assert!(run.wait().unwrap().success());
+    }
+    let text = std::fs::read(&summary).unwrap();
+    assert!(
+        text.starts_with(b"file,algorithm\nold,caf\xe9\n"),
+        "the old rows stay"
+    );
+    assert_eq!(text.iter().filter(|&&b| b == b'\n').count(), 2 + 12);
+    let _ = std::fs::remove_dir_all(&dir);
+}
+
+#[test]
+fn out_of_range_options_are_refused_by_name() {
+    let dir = folder("options");
+    let input = dir.join("in.g2o");
+    let out = dir.join("out.g2o");
+    for (args, flag) in [
+        (
+            vec!["corrupt", s(&input), "-o", s(&out), "--spread", "inf"],
+            "--spread",
+        ),
+        (
+            vec!["corrupt", s(&input), "-o", s(&out), "--spread", "1e308"],
+            "--spread",
+        ),
+        (
+            vec!["corrupt", s(&input), "-o", s(&out), "--fraction", "inf"],
+            "--fraction",
+        ),
+        (
+            vec!["corrupt", s(&input), "-o", s(&out), "--fraction", "1e9"],
+            "--fraction",
+        ),
+        (
+            vec![
+                "generate",
+                "manhattan",
+                "-n",
+                "18446744073709551615",
+                "-o",
+                s(&out),
+            ],
+            "--poses",
+        ),
+        (
+            vec!["generate", "manhattan", "-n", "0", "-o", s(&out)],
+            "--poses",
+        ),
+        (
+            vec!["solve", "-q", s(&input), "--threads", "100000"],
+            "--threads",
+        ),
+    ] {
+        let o = cairn(&args);
+        let said = String::from_utf8_lossy(&o.stderr);
+        assert_eq!(
+            o.status.code(),
+            Some(if args[0] == "corrupt" { 1 } else { 2 }),
+            "{args:?}: {said}"
+        );
+        assert!(said.contains(flag), "{args:?}: {said}");
+    }
+    let _ = std::fs::remove_dir_all(&dir);
+}
