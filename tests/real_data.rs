@@ -3,6 +3,8 @@
 //! run it. The bounds are regression guards near today's results (see
 //! docs/real-data.md), far from the targets of the real-data issue.
 
+mod common;
+
 use std::path::{Path, PathBuf};
 use std::process::{Command, Output};
 
@@ -14,17 +16,7 @@ fn cairn(args: &[&str]) -> Output {
 }
 
 fn dataset6() -> Option<PathBuf> {
-    let dir = Path::new(env!("CARGO_MANIFEST_DIR")).join("../shared/real/mrclam/MRCLAM_Dataset6");
-    if dir.is_dir() {
-        return Some(dir);
-    }
-    assert!(
-        std::env::var_os("CAIRN_REQUIRE_SHARED").is_none(),
-        "CAIRN_REQUIRE_SHARED is set but {} is missing",
-        dir.display()
-    );
-    eprintln!("note: {} not found; skipping", dir.display());
-    None
+    Some(common::shared()?.join("real/mrclam/MRCLAM_Dataset6"))
 }
 
 fn s(p: &Path) -> &str {

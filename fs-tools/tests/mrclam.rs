@@ -1,24 +1,16 @@
 //! The MRCLAM importer on slices of Dataset 6 and on broken folders. The
 //! golden values were read by hand from the dataset's files.
 
+#[path = "../../slam-frontend/tests/common/shared.rs"]
+mod shared;
+
 use cairn_fs_tools::mrclam::{Counts, MrclamError, Options, import};
 use cairn_slam::Color;
 use cairn_slam::log::Record;
 use std::path::{Path, PathBuf};
 
 fn dataset6() -> Option<PathBuf> {
-    let dir =
-        Path::new(env!("CARGO_MANIFEST_DIR")).join("../../shared/real/mrclam/MRCLAM_Dataset6");
-    if dir.is_dir() {
-        return Some(dir);
-    }
-    assert!(
-        std::env::var_os("CAIRN_REQUIRE_SHARED").is_none(),
-        "CAIRN_REQUIRE_SHARED is set but {} is missing",
-        dir.display()
-    );
-    eprintln!("note: {} not found; skipping", dir.display());
-    None
+    shared::shared_path("real/mrclam/MRCLAM_Dataset6")
 }
 
 /// A fresh folder under the system's temporary directory.

@@ -2,22 +2,14 @@
 //! readers and the simulator: each ends with a clear error, not a panic,
 //! a hang or a wrong result.
 
+mod common;
+
 use cairn_slam::course::Course;
 use cairn_slam::track::Track;
-use std::path::{Path, PathBuf};
+use std::path::PathBuf;
 
 fn reliability() -> Option<PathBuf> {
-    let dir = Path::new(env!("CARGO_MANIFEST_DIR")).join("../../shared/reliability");
-    if dir.is_dir() {
-        return Some(dir);
-    }
-    assert!(
-        std::env::var_os("CAIRN_REQUIRE_SHARED").is_none(),
-        "CAIRN_REQUIRE_SHARED is set but {} is missing",
-        dir.display()
-    );
-    eprintln!("note: {} not found; skipping", dir.display());
-    None
+    common::shared_path("reliability")
 }
 
 /// Every track that panicked, allocated without bound or hung the

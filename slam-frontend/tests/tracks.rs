@@ -1,5 +1,7 @@
 //! Track readers and centre lines on the shared tracks, and runs on them.
 
+mod common;
+
 use cairn_slam::course::Course;
 use cairn_slam::estimator::EstimatorKind;
 use cairn_slam::eval::Report;
@@ -13,17 +15,7 @@ use nalgebra::Vector2;
 use std::path::PathBuf;
 
 fn tracks_dir() -> Option<PathBuf> {
-    let dir = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../../shared/tracks");
-    if dir.is_dir() {
-        return Some(dir);
-    }
-    assert!(
-        std::env::var_os("CAIRN_REQUIRE_SHARED").is_none(),
-        "CAIRN_REQUIRE_SHARED is set but {} is missing",
-        dir.display()
-    );
-    eprintln!("note: {} not found; skipping", dir.display());
-    None
+    common::shared_path("tracks")
 }
 
 /// (file, blue, yellow, orange, big orange, approximate lap length) from the

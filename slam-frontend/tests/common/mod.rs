@@ -1,4 +1,8 @@
 //! Helpers shared by the front end's integration tests.
+#![allow(dead_code)]
+
+mod shared;
+pub use shared::shared_path;
 
 use cairn_slam::course::Course;
 use cairn_slam::sim::{SimConfig, Simulation, simulate};
