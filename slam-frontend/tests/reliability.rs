@@ -9,7 +9,7 @@ use cairn_slam::track::Track;
 use std::path::PathBuf;
 
 fn reliability() -> Option<PathBuf> {
-    common::shared_path("reliability")
+    common::shared::shared_path("reliability")
 }
 
 /// Every track that panicked, allocated without bound or hung the

@@ -15,7 +15,7 @@ use nalgebra::Vector2;
 use std::path::PathBuf;
 
 fn tracks_dir() -> Option<PathBuf> {
-    common::shared_path("tracks")
+    common::shared::shared_path("tracks")
 }
 
 /// (file, blue, yellow, orange, big orange, approximate lap length) from the

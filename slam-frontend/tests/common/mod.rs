@@ -1,8 +1,7 @@
 //! Helpers shared by the front end's integration tests.
 #![allow(dead_code)]
 
-mod shared;
-pub use shared::shared_path;
+pub mod shared;
 
 use cairn_slam::course::Course;
 use cairn_slam::sim::{SimConfig, Simulation, simulate};
