@@ -64,20 +64,27 @@ pub struct SimArgs {
     points: bool,
 }
 
+/// Where `fs-slam` and `fs-smooth` write their estimate.
+#[derive(Debug, Args)]
+pub struct EstimateOutputs {
+    /// Write the map (EUFS CSV).
+    #[arg(long)]
+    pub map_out: Option<PathBuf>,
+    /// Write the trajectory (TUM).
+    #[arg(long)]
+    pub traj_out: Option<PathBuf>,
+    /// Write the associations (CSV scan,det,landmark), in the map's rows.
+    #[arg(long)]
+    pub assoc_out: Option<PathBuf>,
+}
+
 /// Options of `cairn fs-slam`.
 #[derive(Debug, Args)]
 pub struct SlamArgs {
     /// Input log (JSON Lines, FORMAT.md).
     log: PathBuf,
-    /// Write the map (EUFS CSV).
-    #[arg(long)]
-    map_out: Option<PathBuf>,
-    /// Write the trajectory (TUM).
-    #[arg(long)]
-    traj_out: Option<PathBuf>,
-    /// Write the associations (CSV scan,det,landmark).
-    #[arg(long)]
-    assoc_out: Option<PathBuf>,
+    #[command(flatten)]
+    out: EstimateOutputs,
     /// Write update and loop-closure timings (JSON).
     #[arg(long)]
     timing_out: Option<PathBuf>,
@@ -339,9 +346,9 @@ pub fn run_slam(a: SlamArgs) -> Result<(), String> {
     })
     .to_string();
     for (path, text) in [
-        (&a.map_out, &map),
-        (&a.traj_out, &traj),
-        (&a.assoc_out, &assoc),
+        (&a.out.map_out, &map),
+        (&a.out.traj_out, &traj),
+        (&a.out.assoc_out, &assoc),
         (&a.timing_out, &timing),
     ] {
         if let Some(path) = path {

@@ -1,7 +1,7 @@
 //! `cairn fs-import`: real recordings to the FORMAT.md log and truth files;
 //! `cairn fs-smooth`: the batch smoother given the associations.
 
-use super::fs::{LOG, TRUTH_ASSOC, TRUTH_MAP, TRUTH_TRAJ, read_text};
+use super::fs::{EstimateOutputs, LOG, TRUTH_ASSOC, TRUTH_MAP, TRUTH_TRAJ, read_text};
 use super::write_output;
 use cairn::fs_tools::{mrclam, smoother};
 use cairn::slam::files;
@@ -102,15 +102,8 @@ pub struct SmoothArgs {
     /// The assumed detector and odometry noise (TOML, as fs-slam's).
     #[arg(long, value_name = "FILE.toml")]
     config: Option<PathBuf>,
-    /// Write the map (EUFS CSV).
-    #[arg(long)]
-    map_out: Option<PathBuf>,
-    /// Write the trajectory (TUM).
-    #[arg(long)]
-    traj_out: Option<PathBuf>,
-    /// Write the associations in the map's rows (CSV), for fs-eval.
-    #[arg(long)]
-    assoc_out: Option<PathBuf>,
+    #[command(flatten)]
+    out: EstimateOutputs,
     /// Write the solved graph (g2o: EDGE_SE2 odometry, EDGE_SE2_XY sightings).
     #[arg(long)]
     g2o_out: Option<PathBuf>,
@@ -134,13 +127,13 @@ pub fn run_smooth(a: SmoothArgs) -> Result<(), String> {
         None => None,
     };
     for (path, text) in [
-        (&a.map_out, Some(map_to_csv(&smoothed.map))),
+        (&a.out.map_out, Some(map_to_csv(&smoothed.map))),
         (
-            &a.traj_out,
+            &a.out.traj_out,
             Some(files::trajectory_to_tum(&smoothed.trajectory)),
         ),
         (
-            &a.assoc_out,
+            &a.out.assoc_out,
             Some(files::associations_to_csv(&smoothed.associations)),
         ),
         (&a.g2o_out, g2o),
