@@ -305,8 +305,10 @@ mod tests {
         let course = Course::new(square, true).unwrap();
         let fine = course.resampled(0.5).unwrap();
         assert!((fine.length() - 40.0).abs() < 1e-9, "{}", fine.length());
+        assert!(fine.resampled(1e-9).is_err(), "10¹⁰ points");
         let huge = vec![Vector2::new(-1e308, 0.0), Vector2::new(1e308, 0.0)];
-        let endless = Course::new(huge, false).unwrap();
-        assert!(endless.resampled(0.5).is_err());
+        assert!(Course::new(huge, false).is_err());
+        let point = vec![Vector2::new(3.0, 4.0); 6];
+        assert!(Course::new(point, true).is_err(), "a course of zero length");
     }
 }
