@@ -3,6 +3,8 @@
 //! killed runs are cleared, concurrent `--summary` rows all land, and
 //! out-of-range options are refused by name.
 
+mod common;
+
 use std::os::unix::fs::{PermissionsExt, symlink};
 use std::path::{Path, PathBuf};
 use std::process::{Command, Output};
@@ -178,5 +180,53 @@ fn out_of_range_options_are_refused_by_name() {
         );
         assert!(said.contains(flag), "{args:?}: {said}");
     }
+    let _ = std::fs::remove_dir_all(&dir);
+}
+
+/// A solve that ends above the file's χ² keeps the file's estimate and
+/// says so; a failure of `--marginals` after the solve still writes it.
+#[test]
+fn worse_than_the_start_is_never_written_and_marginals_do_not_discard_a_solve() {
+    let Some(shared) = common::shared() else {
+        return;
+    };
+    let dir = folder("worse");
+    let out = dir.join("out.g2o");
+    let worse = shared.join("reliability/solver_gn_writes_worse_than_start_loop_err_1e100.g2o");
+    let o = cairn(&[
+        "solve",
+        s(&worse),
+        "--init",
+        "file",
+        "-o",
+        s(&out),
+        "--json",
+    ]);
+    let said = String::from_utf8_lossy(&o.stderr);
+    assert!(said.contains("the file's estimate is kept"), "{said}");
+    let json: serde_json::Value = serde_json::from_slice(&o.stdout).expect("JSON");
+    assert_eq!(json["kept_start"], serde_json::json!(true));
+    let written = cairn(&["solve", s(&out), "-i", "0", "--json"]);
+    let written: serde_json::Value = serde_json::from_slice(&written.stdout).expect("JSON");
+    let start = json["summary"]["initial_chi2"].as_f64().expect("χ²");
+    let kept = written["summary"]["initial_chi2"].as_f64().expect("χ²");
+    assert!(kept <= start * (1.0 + 1e-12), "{kept} > {start}");
+    let marginals = shared.join("reliability/solve_marginals_fail_discards_output.g2o");
+    let _ = std::fs::remove_file(&out);
+    let o = cairn(&[
+        "solve",
+        "-q",
+        s(&marginals),
+        "--marginals",
+        "all",
+        "-o",
+        s(&out),
+    ]);
+    let said = String::from_utf8_lossy(&o.stderr);
+    assert!(
+        !o.status.success() && said.contains("--marginals") && said.contains("was written"),
+        "{said}"
+    );
+    assert!(out.is_file());
     let _ = std::fs::remove_dir_all(&dir);
 }

@@ -455,6 +455,9 @@ fn solve(a: SolveArgs) -> Result<(), String> {
         InitName::Auto => Initialization::Auto,
     };
     let quiet = a.quiet;
+    // A solve that ends above where the file started (Gauss-Newton through
+    // an indefinite H, say) must not replace the file's estimate silently.
+    let (start_values, start_chi2) = (graph.values().params().to_vec(), graph.chi2());
     let (summary, used) = optimize_from(&mut graph, config, init, &mut |start, s| {
         if !quiet {
             eprintln!(
@@ -466,28 +469,45 @@ fn solve(a: SolveArgs) -> Result<(), String> {
     })
     .map_err(|e| format!("{name}: {e}"))?;
     let solve = t.elapsed().as_secs_f64();
+    let end_chi2 = graph.chi2();
+    let kept_start = end_chi2.is_nan() || end_chi2 > start_chi2;
+    if kept_start {
+        graph
+            .values_mut()
+            .params_mut()
+            .copy_from_slice(&start_values);
+        eprintln!(
+            "warning: {name}: the solve ended at χ² {:.6e} ({:?}), above the file's {start_chi2:.6e}; \
+             the file's estimate is kept",
+            summary.final_chi2, summary.termination
+        );
+    }
 
     let marginal_ids = marginal_ids(&a.marginals, &graph, &summary.gauge)?;
     let marginals = if marginal_ids.is_empty() {
-        Vec::new()
+        Ok(Vec::new())
     } else {
-        let mut optimizer = Optimizer::new(&graph, config).map_err(|e| format!("{name}: {e}"))?;
-        optimizer
-            .marginals(&graph, &marginal_ids)
-            .map_err(|e| format!("--marginals: {e}"))?
+        Optimizer::new(&graph, config)
+            .and_then(|mut optimizer| optimizer.marginals(&graph, &marginal_ids))
+            .map_err(|e| format!("--marginals: {e}"))
     };
-    if !a.quiet {
-        for (id, m) in marginal_ids.iter().zip(&marginals) {
-            eprint!("marginal covariance of vertex {id}:{m}");
-        }
-    }
 
+    // The solved graph is written even when its marginals fail.
     let t = Instant::now();
     if let Some(out) = &a.output {
         let text = cairn::g2o::to_string(&graph).map_err(|e| e.to_string())?;
         super::write_output(out, text.as_bytes())?;
     }
     let write = t.elapsed().as_secs_f64();
+    let marginals = marginals.map_err(|e| match &a.output {
+        Some(out) => format!("{e} (the solved graph was written to {})", out.display()),
+        None => e,
+    })?;
+    if !a.quiet {
+        for (id, m) in marginal_ids.iter().zip(&marginals) {
+            eprint!("marginal covariance of vertex {id}:{m}");
+        }
+    }
     let times = Times { load, solve, write };
 
     if !a.quiet {
@@ -525,6 +545,7 @@ fn solve(a: SolveArgs) -> Result<(), String> {
             "edges": edges,
             "load": report_json(&report),
             "summary": summary,
+            "kept_start": kept_start,
             "init": start_name(used),
             "marginals": marginal_ids.iter().zip(&marginals).map(|(id, m)| serde_json::json!({
                 "vertex": id,
