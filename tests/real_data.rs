@@ -19,6 +19,24 @@ fn dataset6() -> Option<PathBuf> {
     Some(common::shared()?.join("real/mrclam/MRCLAM_Dataset6"))
 }
 
+/// `fs-eval --json` of an estimate against the truth in `dir`.
+fn evaluate(dir: &Path, map: &Path, traj: &Path, assoc: &Path) -> serde_json::Value {
+    let o = cairn(&[
+        "fs-eval",
+        "--truth",
+        s(dir),
+        "--map",
+        s(map),
+        "--traj",
+        s(traj),
+        "--assoc",
+        s(assoc),
+        "--json",
+    ]);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    serde_json::from_slice(&o.stdout).expect("JSON")
+}
+
 fn s(p: &Path) -> &str {
     p.to_str().expect("a UTF-8 path")
 }
@@ -69,20 +87,7 @@ fn every_estimator_maps_an_imported_mrclam_robot() {
             "{estimator}: {}",
             String::from_utf8_lossy(&o.stderr)
         );
-        let o = cairn(&[
-            "fs-eval",
-            "--truth",
-            s(&dir),
-            "--map",
-            s(&map),
-            "--traj",
-            s(&traj),
-            "--assoc",
-            s(&assoc),
-            "--json",
-        ]);
-        assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
-        let report: serde_json::Value = serde_json::from_slice(&o.stdout).expect("JSON");
+        let report = evaluate(&dir, &map, &traj, &assoc);
         let number = |key: &str| report[key].as_f64().unwrap_or(f64::NAN);
         eprintln!("{estimator}: {report}");
         // Every detection scored, some landmarks on true ones (today: graph
@@ -124,19 +129,7 @@ fn every_estimator_maps_an_imported_mrclam_robot() {
         s(&g2o),
     ]);
     assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
-    let o = cairn(&[
-        "fs-eval",
-        "--truth",
-        s(&dir),
-        "--map",
-        s(&map),
-        "--traj",
-        s(&traj),
-        "--assoc",
-        s(&assoc),
-        "--json",
-    ]);
-    let report: serde_json::Value = serde_json::from_slice(&o.stdout).expect("JSON");
+    let report = evaluate(&dir, &map, &traj, &assoc);
     assert_eq!(
         (report["landmarks"].as_u64(), report["phantom"].as_u64()),
         (Some(15), Some(0)),
