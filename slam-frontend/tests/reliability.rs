@@ -101,15 +101,15 @@ fn log_numbers_beyond_a_vehicle_are_refused() {
 /// skipped alone under `--skip-bad`.
 #[test]
 fn a_line_that_is_not_utf8_is_one_bad_line() {
-    use cairn_slam::log::Log;
+    use cairn_slam::log::{Log, ScanLimits};
     let mut bytes = b"{\"t\": 0.0, \"type\": \"odom\", \"v\": 1.0, \"yaw_rate\": 0.0}\n".to_vec();
     bytes.extend_from_slice(
         b"{\"t\": 0.5, \"type\": \"odom\", \"v\": 1.0, \xff \"yaw_rate\": 0.0}\n",
     );
     bytes.extend_from_slice(b"{\"t\": 1.0, \"type\": \"odom\", \"v\": 2.0, \"yaw_rate\": 0.0}\r\n");
-    let err = Log::parse_bytes(&bytes, false).unwrap_err();
+    let err = Log::parse_bytes(&bytes, false, &ScanLimits::default()).unwrap_err();
     assert_eq!((err.line, err.message.as_str()), (2, "not UTF-8 text"));
-    let log = Log::parse_bytes(&bytes, true).expect("skips the line");
+    let log = Log::parse_bytes(&bytes, true, &ScanLimits::default()).expect("skips the line");
     assert_eq!(log.records.len(), 2);
     assert_eq!(log.skipped, [(2, "not UTF-8 text".to_string())]);
 }
@@ -137,4 +137,42 @@ fn a_map_with_negative_variances_is_refused() {
             .len(),
         1
     );
+}
+
+/// A scan larger than any sensor's (2,000 cones took EKF-SLAM 123 s, 10⁶
+/// points the clustering minutes) is refused by line with its limit, which
+/// `fs-slam --max-detections` / `--max-points` raise.
+#[test]
+fn scans_past_the_limits_are_refused_with_the_flag_that_raises_them() {
+    use cairn_slam::log::{Log, ScanLimits};
+    let cones: Vec<String> = (0..501)
+        .map(|k| format!("{{\"r\": {}, \"b\": 0.1}}", 1.0 + k as f64 * 0.01))
+        .collect();
+    let scan = format!(
+        "{{\"t\": 1.0, \"type\": \"cones\", \"cones\": [{}]}}\n",
+        cones.join(",")
+    );
+    let err = Log::parse(&scan, false).unwrap_err();
+    assert_eq!(err.line, 1);
+    assert!(
+        err.message.contains("501 detections") && err.message.contains("--max-detections"),
+        "{}",
+        err.message
+    );
+    let raised = ScanLimits {
+        detections: 501,
+        ..ScanLimits::default()
+    };
+    assert_eq!(
+        Log::parse_bytes(scan.as_bytes(), false, &raised)
+            .expect("within the limit")
+            .scans(),
+        1
+    );
+    let points = format!(
+        "{{\"t\": 1.0, \"type\": \"points\", \"points\": [{}]}}\n",
+        vec!["[1.0, 2.0]"; 50_001].join(",")
+    );
+    let err = Log::parse(&points, false).unwrap_err();
+    assert!(err.message.contains("--max-points"), "{}", err.message);
 }

@@ -8,7 +8,7 @@ use cairn::slam::eval::latency_ms;
 use cairn::slam::files;
 use cairn::slam::frontend::association::AssociationMethod;
 use cairn::slam::frontend::{FrontEndConfig, MotionModel};
-use cairn::slam::log::{Log, Record, to_jsonl};
+use cairn::slam::log::{Log, Record, ScanLimits, to_jsonl};
 use cairn::slam::motion::DEFAULT_ALPHA;
 use cairn::slam::points::PointCloudConfig;
 use cairn::slam::sim::{Preset, SimConfig, point_clouds, simulate};
@@ -120,6 +120,13 @@ pub struct SlamArgs {
     /// Skip and count malformed log lines instead of stopping at the first.
     #[arg(long)]
     skip_bad: bool,
+    /// Refuse scans of more detections than this (the estimators' time
+    /// grows with a scan's size).
+    #[arg(long, default_value_t = ScanLimits::default().detections)]
+    max_detections: usize,
+    /// Refuse point clouds of more points than this.
+    #[arg(long, default_value_t = ScanLimits::default().points)]
+    max_points: usize,
     /// Assumed detector noise preset (`standard` or `hard`, the simulator's
     /// presets, as configs/standard.toml and configs/hard.toml); the options
     /// below override its parts. Not with `--config`.
@@ -252,7 +259,11 @@ pub fn run_sim(a: SimArgs) -> Result<(), String> {
 
 pub fn run_slam(a: SlamArgs) -> Result<(), String> {
     let name = a.log.display().to_string();
-    let log = Log::parse_bytes(&super::read_input(&a.log)?, a.skip_bad)
+    let limits = ScanLimits {
+        detections: a.max_detections,
+        points: a.max_points,
+    };
+    let log = Log::parse_bytes(&super::read_input(&a.log)?, a.skip_bad, &limits)
         .map_err(|e| format!("{name}: {e}"))?;
     for (line, message) in &log.skipped {
         eprintln!("{name}: skipped line {line}: {message}");

@@ -111,8 +111,8 @@ pub struct SmoothArgs {
 
 pub fn run_smooth(a: SmoothArgs) -> Result<(), String> {
     let name = a.log.display().to_string();
-    let log =
-        Log::parse_bytes(&super::read_input(&a.log)?, false).map_err(|e| format!("{name}: {e}"))?;
+    let log = Log::parse_bytes(&super::read_input(&a.log)?, false, &Default::default())
+        .map_err(|e| format!("{name}: {e}"))?;
     let associations = files::associations_from_csv(&read_text(&a.assoc)?)
         .map_err(|e| format!("{}: {e}", a.assoc.display()))?;
     let config = match &a.config {
