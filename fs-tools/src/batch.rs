@@ -14,10 +14,6 @@ use nalgebra::{Matrix2, Matrix3, Vector2};
 /// --robust-kernel cauchy --robust-kernel-width 1`).
 pub const CAUCHY_WIDTH: f64 = 1.0;
 
-/// Variance added to every odometry step's covariance: a robot standing
-/// still has a step of zero covariance, whose information would be infinite.
-const STEP_FLOOR: [f64; 3] = [1e-8, 1e-8, 1e-10];
-
 /// Landmark ids start at this vertex id, clear of any log's scans.
 const LANDMARK_BASE: i64 = 1 << 40;
 
@@ -54,12 +50,6 @@ impl Batch {
             poses: vec![start],
             ..Self::default()
         }
-    }
-
-    /// The information of an odometry step of covariance `cov`.
-    pub fn step_information(cov: &Matrix3<f64>) -> Matrix3<f64> {
-        let floor = Matrix3::from_diagonal(&STEP_FLOOR.into());
-        (cov + floor).try_inverse().unwrap_or_else(Matrix3::zeros)
     }
 
     /// Solves with Levenberg-Marquardt from `init` for at most

@@ -12,7 +12,7 @@
 use crate::batch::{Batch, BatchSighting};
 use cairn_core::{Graph, GraphError, SE2};
 use cairn_slam::files::{Association, StampedPose};
-use cairn_slam::frontend::{FrontEndConfig, OptimiseError};
+use cairn_slam::frontend::{FrontEndConfig, OptimiseError, nearest_information};
 use cairn_slam::log::Record;
 use cairn_slam::motion::Odometry;
 use cairn_slam::track::Cone;
@@ -91,7 +91,9 @@ pub fn smooth(
             Record::Cones { t, cones } => {
                 motion.advance(*t, (1.0, 0.0));
                 let (delta, cov) = motion.take();
-                steps.push((delta, Batch::step_information(&cov)));
+                // A robot standing still has a step of zero covariance: the
+                // ridge keeps its information finite.
+                steps.push((delta, nearest_information(&cov)));
                 times.push(*t);
                 scans.push(cones);
             }
@@ -120,7 +122,7 @@ pub fn smooth(
                 ids.push(id);
                 ids.len() - 1
             });
-            let information = config.detection_cov(d).try_inverse().unwrap_or_default();
+            let information = nearest_information(&config.detection_cov(d));
             sightings.push(BatchSighting {
                 scan: a.scan,
                 landmark,

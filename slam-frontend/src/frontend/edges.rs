@@ -68,7 +68,7 @@ pub(super) fn odometry_information(cov: &Matrix3<f64>) -> Matrix3<f64> {
 
 /// The information of a covariance: its inverse after a 1e-9 ridge (a
 /// singular covariance gets 1e9), symmetrised.
-pub(super) fn nearest_information<const N: usize>(cov: &SMatrix<f64, N, N>) -> SMatrix<f64, N, N> {
+pub fn nearest_information<const N: usize>(cov: &SMatrix<f64, N, N>) -> SMatrix<f64, N, N> {
     let reg = cov + SMatrix::<f64, N, N>::identity() * 1e-9;
     let inv = reg
         .try_inverse()

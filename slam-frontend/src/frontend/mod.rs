@@ -18,7 +18,8 @@ mod optimise;
 mod window;
 pub use calibration::Calibration;
 pub use config::{ConfigError, FrontEndConfig};
-use edges::{OdometryEdge, nearest_information, odometry_information};
+pub use edges::nearest_information;
+use edges::{OdometryEdge, odometry_information};
 pub(crate) use optimise::MERGE_RADIUS;
 
 use crate::files::{Association, StampedPose};
