@@ -547,6 +547,15 @@ impl Graph {
         self.groups.iter().map(|g| g.total_chi2(&self.values)).sum()
     }
 
+    /// Whether [`Graph::chi2`] is the objective the solvers' steps descend,
+    /// so that a lower χ² is a better estimate: true unless an edge has a
+    /// kernel whose value is not the integral of its weight
+    /// ([`RobustKernel::value_matches_weight`]: DCS).
+    pub fn chi2_is_objective(&self) -> bool {
+        self.edges()
+            .all(|e| e.kernel().is_none_or(|k| k.value_matches_weight()))
+    }
+
     /// Mutable access to the groups and the values at once (for initialisation).
     pub(crate) fn groups_and_values_mut(&mut self) -> (&[Box<dyn FactorGroup>], &mut Values) {
         (&self.groups, &mut self.values)

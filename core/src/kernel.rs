@@ -33,6 +33,15 @@ pub enum RobustKernel {
 }
 
 impl RobustKernel {
+    /// Whether ρ′ is the derivative of ρ, so that Σρ is the cost the
+    /// weights ρ′ minimise. False for DCS only, whose value follows g2o
+    /// (s·w², bounded by 4Φ), not the integral of its weight w²: a
+    /// solution with outliers down-weighted can have a higher Σρ than a
+    /// wrong one.
+    pub fn value_matches_weight(&self) -> bool {
+        !matches!(self, Self::Dcs(_))
+    }
+
     /// Every kernel's name, as accepted by [`RobustKernel::from_name`].
     pub const NAMES: [&'static str; 9] = [
         "huber",

@@ -11,7 +11,8 @@ use serde::{Deserialize, Serialize};
 /// dogleg guard against steps that raise χ² (bad starts, outliers).
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize, Deserialize)]
 pub enum Algorithm {
-    /// Gauss-Newton: solve H δ = −g and take the full step.
+    /// Gauss-Newton: solve H δ = −g and take the full step. The estimate
+    /// returned is the lowest-χ² iterate (see [`Summary::returned_lowest`]).
     #[default]
     GaussNewton,
     /// Levenberg-Marquardt: H + λD, with λ adapted to how well each step's
@@ -36,8 +37,8 @@ impl Algorithm {
 /// How Levenberg-Marquardt damps the Hessian and picks its first λ.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize, Deserialize)]
 pub enum Damping {
-    /// Marquardt's: H + λ·diag(H) (diagonal kept within [1e-6, 1e32], as
-    /// Ceres), first λ = `tau`. Every unknown is damped in proportion to its
+    /// Marquardt's: H + λ·diag(H) (each entry kept above 1e-10 × the
+    /// largest), first λ = `tau`. Every unknown is damped in proportion to its
     /// own curvature, so the step does not depend on the units of the
     /// unknowns. Where H is singular (an unknown that no measurement fixes
     /// along some direction, e.g. a point seen once by range only), the
@@ -201,7 +202,11 @@ pub struct SolverConfig {
     /// graphs whose first steps overshoot (M3500b, torus3D).
     #[serde(default)]
     pub stop_on_increase: bool,
-    /// Stop when the largest gradient component |JᵀΩe| is below this. Default 1e-10.
+    /// Stop when the gradient is this close to orthogonal to the residual:
+    /// every |gᵢ| ≤ this × √(Hᵢᵢ·χ²), the cosine between the whitened
+    /// residual and the whitened Jacobian's column i (MINPACK's `gtol`).
+    /// Unlike a bound on |g| it does not depend on the scale of the
+    /// information or the units of the unknowns. Default 1e-10.
     pub gradient_tolerance: f64,
     /// Stop when the largest step component is below this × (1 + largest
     /// parameter). Default 1e-12.
@@ -248,13 +253,15 @@ impl Default for SolverConfig {
 pub enum Termination {
     /// χ² fell by less than `relative_decrease` in an iteration.
     RelativeDecrease,
-    /// The gradient is below `gradient_tolerance`.
+    /// The gradient is orthogonal to the residual to within
+    /// `gradient_tolerance`, or χ² is 0.
     GradientNorm,
     /// The step is below `step_tolerance` (LM: also a rejected step).
     StepSize,
     /// `max_iterations` done.
     MaxIterations,
-    /// LM or dogleg: `max_trials` rejected steps in a row; the estimate is the best found.
+    /// LM or dogleg: `max_trials` rejected steps in a row, none of them
+    /// small; the estimate is the best found, but not shown to be a minimum.
     NoImprovement,
     /// GN or dogleg: the Hessian was not positive definite (dogleg: even damped);
     /// the estimate is the last one.
@@ -269,11 +276,12 @@ pub enum Termination {
 }
 
 impl Termination {
-    /// Whether this counts as convergence.
+    /// Whether this counts as convergence: χ², the gradient or the step
+    /// became negligible, or there was nothing to optimise.
     pub fn converged(&self) -> bool {
         matches!(
             self,
-            Self::RelativeDecrease | Self::GradientNorm | Self::StepSize | Self::NoImprovement
+            Self::RelativeDecrease | Self::GradientNorm | Self::StepSize | Self::NothingToOptimize
         )
     }
 }
@@ -377,4 +385,11 @@ pub struct Summary {
     pub phases: PhaseTimes,
     /// One entry per iteration.
     pub trace: Vec<IterationStats>,
+    /// Whether the solve ended above the lowest χ² it met (Gauss-Newton
+    /// after a step that raised χ², Levenberg-Marquardt after non-monotonic
+    /// steps) and the estimate returned is that lowest one's, not the last
+    /// iterate's. Gauss-Newton does so only where χ² is the objective
+    /// ([`cairn_core::Graph::chi2_is_objective`]: no DCS kernel).
+    #[serde(default)]
+    pub returned_lowest: bool,
 }

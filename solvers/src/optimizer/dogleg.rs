@@ -28,7 +28,7 @@ impl Optimizer {
             let began = Instant::now();
             let mut phases = PhaseTimes::default();
             let gradient_max = max_abs(&self.gradient);
-            if gradient_max < self.config.gradient_tolerance || chi2 == 0.0 {
+            if self.gradient_is_small(chi2) {
                 return Termination::GradientNorm;
             }
             if !self.damped_gauss_newton_step(&mut phases) {
@@ -51,6 +51,7 @@ impl Optimizer {
 
             self.save(graph);
             let mut trials = 0;
+            let mut rejected_small_step = false;
             let accepted = loop {
                 trials += 1;
                 if gn_norm <= radius {
@@ -100,7 +101,10 @@ impl Optimizer {
                 self.restore(graph);
                 phases.update += since(t0);
                 radius = 0.5 * radius.min(step_norm);
-                if trials >= self.config.dogleg.max_trials {
+                // A step too small to matter that fails is rounding at the
+                // optimum: shrinking the radius would not change that.
+                rejected_small_step = self.step_is_small(graph);
+                if rejected_small_step || trials >= self.config.dogleg.max_trials {
                     break None;
                 }
             };
@@ -115,7 +119,11 @@ impl Optimizer {
             };
             let Some(new_chi2) = accepted else {
                 record(stats, began, start, summary, on_iteration);
-                return Termination::NoImprovement;
+                return if rejected_small_step {
+                    Termination::StepSize
+                } else {
+                    Termination::NoImprovement
+                };
             };
             let clock = (began, start);
             if let Some(end) =

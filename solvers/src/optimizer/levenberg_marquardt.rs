@@ -6,6 +6,12 @@ use crate::optimizer::Optimizer;
 use cairn_core::Graph;
 use std::time::Instant;
 
+/// Added to the model's predicted decrease before the ratio of actual to
+/// predicted decrease is taken, as a fraction of χ²: a guard against a zero
+/// prediction. (g2o adds 1e-3, which makes the ratio depend on the scale of
+/// the information.)
+const PREDICTION_GUARD: f64 = 1e-12;
+
 /// Which steps LM may accept when non-monotonic steps are allowed (Conn,
 /// Gould and Toint's non-monotone trust region, as Ceres's
 /// `use_nonmonotonic_steps`): a step may raise χ² if, measured from a
@@ -90,17 +96,23 @@ impl NonMonotone {
 
 impl Optimizer {
     /// LM's damping D at the current H: 1 (Levenberg), or the diagonal of H
-    /// kept within [1e-6, 1e32] (Marquardt, as Ceres).
+    /// kept above 1e-10 × its largest entry (Marquardt), so that an unknown
+    /// without curvature is still damped. (Ceres bounds it by absolute
+    /// values, [1e-6, 1e32], which changes the steps when all information
+    /// is scaled.)
     fn set_damping(&mut self) {
         match self.config.lm.damping {
             Damping::Levenberg => self.damping.fill(1.0),
             Damping::Marquardt => {
+                let diagonal = self.structure.layout.diagonal();
+                let largest = diagonal.fold(0.0f64, |m, k| m.max(self.hessian[k]));
+                let least = (1e-10 * largest).max(f64::MIN_POSITIVE);
                 for (d, k) in self
                     .damping
                     .iter_mut()
                     .zip(self.structure.layout.diagonal())
                 {
-                    *d = self.hessian[k].clamp(1e-6, 1e32);
+                    *d = self.hessian[k].max(least);
                 }
             }
         }
@@ -140,7 +152,7 @@ impl Optimizer {
                 let began = Instant::now();
                 let mut phases = PhaseTimes::default();
                 let gradient_max = max_abs(&self.gradient);
-                if gradient_max < self.config.gradient_tolerance || chi2 == 0.0 {
+                if self.gradient_is_small(chi2) {
                     break 'run Termination::GradientNorm;
                 }
                 self.set_damping();
@@ -170,9 +182,8 @@ impl Optimizer {
                             );
                         }
                     }
-                    // The model's decrease, with g2o's 1e-3 guard against a
-                    // zero prediction.
-                    let predicted = self.model_decrease(lambda) + 1e-3;
+                    // The model's decrease, guarded against zero.
+                    let predicted = self.model_decrease(lambda) + PREDICTION_GUARD * chi2;
                     let rho = steps.ratio(chi2, trial_chi2, predicted);
                     if solved && rho > 0.0 && trial_chi2.is_finite() {
                         let leaving_lowest = chi2 == steps.minimum;
@@ -264,10 +275,7 @@ impl Optimizer {
             Termination::MaxIterations
         };
         debug_assert!(summary.final_chi2 <= steps.minimum || !lowest.is_empty());
-        if summary.final_chi2 > steps.minimum && !lowest.is_empty() {
-            graph.values_mut().params_mut().copy_from_slice(&lowest);
-            summary.final_chi2 = steps.minimum;
-        }
+        self.return_lowest(graph, summary, &lowest, steps.minimum);
         termination
     }
 }
@@ -397,7 +405,7 @@ impl Optimizer {
                 spent.add(&phases);
                 break;
             }
-            let predicted = -dot(&self.step, &self.gradient) + 1e-3;
+            let predicted = -dot(&self.step, &self.gradient) + PREDICTION_GUARD * chi2;
             let t = Instant::now();
             self.apply_step(graph);
             phases.update += since(t);
