@@ -100,14 +100,14 @@ fn stdin_to_stdout() {
 }
 
 #[test]
-fn errors_name_the_file_and_line_and_exit_non_zero() {
+fn errors_name_the_file_and_line_and_exit_with_their_status() {
     let dir = temp_dir("bad");
     let bad = dir.join("bad.g2o");
     std::fs::write(&bad, "VERTEX_SE2 0 0 0 0\nEDGE_SE2 0 3 1 0 0 1 0 0 1 0 1\n").unwrap();
     let out = dir.join("out.g2o");
     std::fs::write(&out, "precious").unwrap();
     let o = cairn(&["solve", s(&bad), "-o", s(&out)]);
-    assert_eq!(o.status.code(), Some(1));
+    assert_eq!(o.status.code(), Some(3));
     let err = stderr(&o);
     assert!(
         err.contains("bad.g2o: line 2: vertex 3 is not in the graph"),
@@ -121,20 +121,20 @@ fn errors_name_the_file_and_line_and_exit_non_zero() {
     );
 
     let o = cairn(&["solve", s(&dir.join("missing.g2o"))]);
-    assert_eq!(o.status.code(), Some(1));
+    assert_eq!(o.status.code(), Some(4));
     assert!(stderr(&o).contains("missing.g2o"), "{}", stderr(&o));
 
     let good = dir.join("good.g2o");
     std::fs::write(&good, "VERTEX_SE2 0 0 0 0\n").unwrap();
     let o = cairn(&["solve", s(&good), "--fix", "5"]);
-    assert_eq!(o.status.code(), Some(1));
+    assert_eq!(o.status.code(), Some(2));
     assert!(stderr(&o).contains("--fix: vertex 5 is not in the graph"));
     let o = cairn(&["solve", s(&good), "-o", "-", "--json"]);
-    assert_eq!(o.status.code(), Some(1));
+    assert_eq!(o.status.code(), Some(2));
     let o = cairn(&["solve", s(&good), "-o", s(&dir.join("no/such/dir/out.g2o"))]);
-    assert_eq!(o.status.code(), Some(1));
+    assert_eq!(o.status.code(), Some(4));
     let o = cairn(&["solve", s(&good), "--solver", "newton"]);
-    assert_eq!(o.status.code(), Some(2), "usage errors come from clap");
+    assert_eq!(o.status.code(), Some(2), "clap's usage errors too");
 }
 
 #[test]
@@ -232,7 +232,7 @@ fn fix_holds_vertices_and_cubicle_needs_repair() {
         return;
     };
     let o = cairn(&["solve", s(&cubicle), "-i", "1"]);
-    assert_eq!(o.status.code(), Some(1));
+    assert_eq!(o.status.code(), Some(3));
     let err = stderr(&o);
     assert!(
         err.contains("5021 edges have information matrices that are not positive definite"),
@@ -318,7 +318,7 @@ fn corrupt_then_solve_with_a_robust_kernel() {
     assert!(naive > 100.0 * clean_chi2, "{naive} vs {clean_chi2}");
     assert!(robust < 2.0 * clean_chi2, "{robust} vs {clean_chi2}");
     let o = cairn(&["solve", s(&bad), "--robust-kernel", "l3"]);
-    assert_eq!(o.status.code(), Some(1));
+    assert_eq!(o.status.code(), Some(2));
     assert!(
         stderr(&o).contains("unknown robust kernel \"l3\"; choose one of huber"),
         "{}",

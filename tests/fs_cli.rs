@@ -373,3 +373,32 @@ fn a_simulation_with_a_noisier_detector_says_how_to_map_it() {
         assert_eq!(stderr.contains("--noise hard"), hint, "{stderr}");
     }
 }
+
+/// Localising on another track's map: the run says that the map may be
+/// the wrong one.
+#[test]
+fn localising_on_another_tracks_map_is_warned_about() {
+    let (here, there) = (temp_dir("map-here"), temp_dir("map-there"));
+    simulate_short_run(&here, &[]);
+    let o = cairn(&["fs-sim", "--seed", "5", "--laps", "0.3", "-o", s(&there)]);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let o = cairn(&[
+        "fs-slam",
+        s(&here.join("log.jsonl")),
+        "--map-in",
+        s(&there.join("truth_map.csv")),
+    ]);
+    let said = String::from_utf8_lossy(&o.stderr);
+    assert!(
+        said.contains("is not the map of this run's track"),
+        "{said}"
+    );
+    let o = cairn(&[
+        "fs-slam",
+        s(&here.join("log.jsonl")),
+        "--map-in",
+        s(&here.join("truth_map.csv")),
+    ]);
+    let said = String::from_utf8_lossy(&o.stderr);
+    assert!(!said.contains("is not the map"), "{said}");
+}

@@ -26,4 +26,4 @@ pub mod writer;
 
 pub use error::{G2oError, LineError};
 pub use reader::{LoadReport, ReadOptions, read_bytes, read_file};
-pub use writer::{to_string, write, write_atomically, write_file};
+pub use writer::{remove_temporary_files, to_string, write, write_atomically, write_file};

@@ -9,6 +9,7 @@ use nalgebra::Vector2;
 use std::any::TypeId;
 use std::io::Write;
 use std::path::{Path, PathBuf};
+use std::sync::{Mutex, MutexGuard};
 
 /// Appends ` v` in the shortest form that reads back to the same `f64`
 /// (exponents for very large or small values, as `1e+16` and `1e-7`).
@@ -158,6 +159,7 @@ pub fn write_atomically(path: &Path, bytes: &[u8]) -> Result<(), G2oError> {
     remove_stale_temporaries(&dir, &name);
     let tmp = dir.join(format!(".{name}.{}.tmp", std::process::id()));
     let permissions = std::fs::metadata(&target).ok().map(|m| m.permissions());
+    in_progress().push(tmp.clone());
     let result = (|| {
         let mut file = std::fs::File::create(&tmp)?;
         file.write_all(bytes)?;
@@ -167,10 +169,30 @@ pub fn write_atomically(path: &Path, bytes: &[u8]) -> Result<(), G2oError> {
         file.sync_all()?;
         std::fs::rename(&tmp, &target)
     })();
+    in_progress().retain(|p| p != &tmp);
     result.map_err(|e| {
         let _ = std::fs::remove_file(&tmp);
         G2oError::io(path, e)
     })
+}
+
+/// The temporary files of [`write_atomically`] calls under way.
+static IN_PROGRESS: Mutex<Vec<PathBuf>> = Mutex::new(Vec::new());
+
+fn in_progress() -> MutexGuard<'static, Vec<PathBuf>> {
+    // A panic elsewhere while holding it leaves the list as good as before.
+    IN_PROGRESS
+        .lock()
+        .unwrap_or_else(|poisoned| poisoned.into_inner())
+}
+
+/// Removes the temporary files of the [`write_atomically`] calls under way,
+/// leaving their targets as they were: for a signal handler about to end
+/// the process (the `cairn` tool's, on SIGINT and SIGTERM).
+pub fn remove_temporary_files() {
+    for tmp in in_progress().drain(..) {
+        let _ = std::fs::remove_file(tmp);
+    }
 }
 
 /// `path` with symbolic links followed (at most 40, as Linux allows); a

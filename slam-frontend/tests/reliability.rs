@@ -176,3 +176,68 @@ fn scans_past_the_limits_are_refused_with_the_flag_that_raises_them() {
     let err = Log::parse(&points, false).unwrap_err();
     assert!(err.message.contains("--max-points"), "{}", err.message);
 }
+
+/// A `start` record after the run has begun is ignored by every estimator:
+/// the pose does not jump to it.
+#[test]
+fn a_second_start_record_does_not_move_the_car() {
+    use cairn_core::SE2;
+    use cairn_slam::Color;
+    use cairn_slam::estimator::{EstimatorBuilder, EstimatorKind};
+    use cairn_slam::frontend::FrontEndConfig;
+    use cairn_slam::log::{Detection, Record};
+    use nalgebra::Vector2;
+    let cones = [
+        (5.0, 2.0, Color::Blue),
+        (5.0, -2.0, Color::Yellow),
+        (9.0, 2.0, Color::Blue),
+    ];
+    let mut records = vec![Record::Start {
+        t: 0.0,
+        pose: SE2::identity(),
+    }];
+    for k in 0..=20 {
+        let t = 0.1 * f64::from(k);
+        records.push(Record::Odom {
+            t,
+            v: 1.0,
+            yaw_rate: 0.0,
+            steer: None,
+            vy: None,
+        });
+        if k == 10 {
+            records.push(Record::Start {
+                t,
+                pose: SE2::new(100.0, 100.0, 1.0),
+            });
+        }
+        // The cones as seen from x = t (straight ahead at 1 m/s).
+        let seen = cones
+            .iter()
+            .map(|&(x, y, color)| Detection {
+                position: Vector2::new(x - t, y),
+                range_bearing: None,
+                color,
+                id: None,
+                covariance: None,
+            })
+            .collect();
+        records.push(Record::Cones { t, cones: seen });
+    }
+    for kind in [
+        EstimatorKind::Graph,
+        EstimatorKind::Ekf,
+        EstimatorKind::FastSlam1,
+        EstimatorKind::FastSlam2,
+    ] {
+        let mut slam = EstimatorBuilder::new(kind, FrontEndConfig::default()).build();
+        for record in &records {
+            slam.process(record);
+        }
+        let last = slam.trajectory().last().expect("a trajectory").pose;
+        assert!(
+            (last.t - Vector2::new(2.0, 0.0)).norm() < 0.5,
+            "{kind:?} ends at {last:?}"
+        );
+    }
+}

@@ -26,7 +26,7 @@ fn counts(map: &std::collections::BTreeMap<&str, usize>) -> String {
         .join(", ")
 }
 
-pub fn run(a: CheckArgs) -> Result<(), String> {
+pub fn run(a: CheckArgs) -> Result<(), super::CliError> {
     let name = a.file.display().to_string();
     let bytes = super::read_input(&a.file)?;
     // Read with repair so that indefinite matrices are counted, not fatal.
@@ -34,7 +34,7 @@ pub fn run(a: CheckArgs) -> Result<(), String> {
         repair_information: true,
     };
     let (graph, report) =
-        cairn::g2o::read_bytes(&bytes, &options).map_err(|e| format!("{name}: {e}"))?;
+        cairn::g2o::read_bytes(&bytes, &options).map_err(super::bad_input(&name))?;
     let d = diagnose(&graph, a.worst);
     if a.json {
         let edge = |e: &cairn::core::diagnostics::EdgeSummary| serde_json::json!({"edge": e.index, "type": e.name, "vertices": e.vertices, "value": e.value});

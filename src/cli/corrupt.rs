@@ -1,5 +1,6 @@
 //! `cairn corrupt`: add random false loop closures to a g2o file.
 
+use super::{CliError, bad_input};
 use cairn::g2o::ReadOptions;
 use cairn::outliers::add_false_loop_closures;
 use clap::Args;
@@ -25,23 +26,23 @@ pub struct CorruptArgs {
     seed: u64,
 }
 
-pub fn run(a: CorruptArgs) -> Result<(), String> {
+pub fn run(a: CorruptArgs) -> Result<(), super::CliError> {
     if !(0.0..=10.0).contains(&a.fraction) {
-        return Err(format!(
+        return Err(CliError::usage(format!(
             "--fraction must be from 0 to 10, got {}",
             a.fraction
-        ));
+        )));
     }
     if !(a.spread > 0.0 && a.spread <= 1e6) {
-        return Err(format!(
+        return Err(CliError::usage(format!(
             "--spread must be above 0 and at most 1e6 m, got {:e}",
             a.spread
-        ));
+        )));
     }
     let name = a.file.display().to_string();
     let bytes = super::read_input(&a.file)?;
-    let (mut graph, _) = cairn::g2o::read_bytes(&bytes, &ReadOptions::default())
-        .map_err(|e| format!("{name}: {e}"))?;
+    let (mut graph, _) =
+        cairn::g2o::read_bytes(&bytes, &ReadOptions::default()).map_err(bad_input(&name))?;
     let added = add_false_loop_closures(&mut graph, a.fraction, a.spread, a.seed)
         .map_err(|e| e.to_string())?;
     let text = cairn::g2o::to_string(&graph).map_err(|e| e.to_string())?;

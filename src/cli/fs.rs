@@ -1,6 +1,6 @@
 //! The Formula Student commands `fs-sim` and `fs-slam` (`fs-eval` is in `fs_eval.rs`).
 
-use super::write_output;
+use super::{CliError, bad_input, write_output};
 use cairn::slam::Track;
 use cairn::slam::course::Course;
 use cairn::slam::estimator::{EstimatorBuilder, EstimatorKind};
@@ -12,6 +12,7 @@ use cairn::slam::log::{Log, Record, ScanLimits, to_jsonl};
 use cairn::slam::motion::DEFAULT_ALPHA;
 use cairn::slam::points::PointCloudConfig;
 use cairn::slam::sim::{Preset, SimConfig, point_clouds, simulate};
+use cairn::slam::track::TrackError;
 use cairn::slam::track::{map_from_csv, map_to_csv};
 use cairn::slam::trackgen::{TrackRules, random_track};
 use clap::Args;
@@ -171,39 +172,49 @@ pub struct SlamArgs {
     known_assoc: Option<PathBuf>,
 }
 
-pub(super) fn read_text(path: &Path) -> Result<String, String> {
-    std::fs::read_to_string(path).map_err(|e| format!("{}: {e}", path.display()))
+pub(super) fn read_text(path: &Path) -> Result<String, CliError> {
+    std::fs::read_to_string(path).map_err(|e| CliError::io(format!("{}: {e}", path.display())))
+}
+
+/// A track file's error: unreadable, or malformed.
+fn track_error(path: &Path) -> impl FnOnce(TrackError) -> CliError + '_ {
+    move |e| match e {
+        TrackError::Io { .. } => CliError::io(e.to_string()),
+        _ => CliError::input(format!("{}: {e}", path.display())),
+    }
 }
 
 /// The rules of `fs-sim`'s random track.
-fn track_rules(a: &SimArgs) -> Result<TrackRules, String> {
+fn track_rules(a: &SimArgs) -> Result<TrackRules, CliError> {
     let mut rules = TrackRules::default();
     if let Some(spacing) = &a.cone_spacing {
         if a.track.is_some() {
-            return Err("--cone-spacing applies to random tracks only, not to --track".into());
+            return Err(CliError::usage(
+                "--cone-spacing applies to random tracks only, not to --track",
+            ));
         }
         let (min, max) = (spacing[0], *spacing.last().unwrap_or(&spacing[0]));
         if !(min > 0.0 && min <= max && max <= 5.0) {
-            return Err(format!(
+            return Err(CliError::usage(format!(
                 "--cone-spacing must be MIN,MAX with 0 < MIN <= MAX <= 5 m (the rules' largest), got {min},{max}"
-            ));
+            )));
         }
         rules.spacing = (min, max);
     }
     Ok(rules)
 }
 
-pub fn run_sim(a: SimArgs) -> Result<(), String> {
-    let preset = Preset::by_name(&a.preset).ok_or("--preset must be standard or hard")?;
+pub fn run_sim(a: SimArgs) -> Result<(), super::CliError> {
+    let preset = Preset::by_name(&a.preset)
+        .ok_or_else(|| CliError::usage("--preset must be standard or hard"))?;
     if !(a.laps > 0.0 && a.speed > 0.0 && a.laps.is_finite() && a.speed.is_finite()) {
-        return Err("--laps and --speed must be positive".into());
+        return Err(CliError::usage("--laps and --speed must be positive"));
     }
     let rules = track_rules(&a)?;
     let (track, course) = match &a.track {
         Some(path) => {
-            let track = Track::load(path).map_err(|e| format!("{}: {e}", path.display()))?;
-            let course =
-                Course::from_track(&track).map_err(|e| format!("{}: {e}", path.display()))?;
+            let track = Track::load(path).map_err(track_error(path))?;
+            let course = Course::from_track(&track).map_err(bad_input(path.display()))?;
             (track, course)
         }
         None => random_track(a.track_seed.unwrap_or(a.seed), &rules),
@@ -219,7 +230,8 @@ pub fn run_sim(a: SimArgs) -> Result<(), String> {
     if a.points {
         sim = point_clouds(&sim, &PointCloudConfig::default(), a.seed);
     }
-    std::fs::create_dir_all(&a.out).map_err(|e| format!("{}: {e}", a.out.display()))?;
+    std::fs::create_dir_all(&a.out)
+        .map_err(|e| CliError::io(format!("{}: {e}", a.out.display())))?;
     write_output(&a.out.join(LOG), to_jsonl(&sim.log).as_bytes())?;
     write_output(
         &a.out.join(TRUTH_TRAJ),
@@ -257,35 +269,35 @@ pub fn run_sim(a: SimArgs) -> Result<(), String> {
     Ok(())
 }
 
-pub fn run_slam(a: SlamArgs) -> Result<(), String> {
+pub fn run_slam(a: SlamArgs) -> Result<(), super::CliError> {
     let name = a.log.display().to_string();
+    // The options first: a wrong one fails before the log is read.
+    let kind = EstimatorKind::by_name(&a.estimator)
+        .ok_or_else(|| CliError::usage("--estimator must be graph, ekf, fastslam1 or fastslam2"))?;
+    let config = slam_config(&a, kind)?;
+    if a.particles == 0 {
+        return Err(CliError::usage("--particles must be positive"));
+    }
     let limits = ScanLimits {
         detections: a.max_detections,
         points: a.max_points,
     };
     let log = Log::parse_bytes(&super::read_input(&a.log)?, a.skip_bad, &limits)
-        .map_err(|e| format!("{name}: {e}"))?;
+        .map_err(bad_input(&name))?;
     for (line, message) in &log.skipped {
         eprintln!("{name}: skipped line {line}: {message}");
     }
     for (kind, n) in &log.unknown_types {
         eprintln!("{name}: {n} records of unknown type '{kind}' ignored");
     }
-    let kind = EstimatorKind::by_name(&a.estimator)
-        .ok_or("--estimator must be graph, ekf, fastslam1 or fastslam2")?;
-    let config = slam_config(&a, kind)?;
-    if a.particles == 0 {
-        return Err("--particles must be positive".into());
-    }
     let map = match &a.map_in {
         Some(path) => {
-            let map =
-                map_from_csv(&read_text(path)?).map_err(|e| format!("{}: {e}", path.display()))?;
+            let map = map_from_csv(&read_text(path)?).map_err(bad_input(path.display()))?;
             if map.is_empty() {
-                return Err(format!(
+                return Err(CliError::input(format!(
                     "{}: the map has no cones to localise on",
                     path.display()
-                ));
+                )));
             }
             Some(map)
         }
@@ -293,11 +305,12 @@ pub fn run_slam(a: SlamArgs) -> Result<(), String> {
     };
     let known = match &a.known_assoc {
         Some(_) if kind == EstimatorKind::Graph => {
-            return Err("--known-assoc works with ekf, fastslam1 and fastslam2".into());
+            return Err(CliError::usage(
+                "--known-assoc works with ekf, fastslam1 and fastslam2",
+            ));
         }
         Some(path) => Some(
-            files::associations_from_csv(&read_text(path)?)
-                .map_err(|e| format!("{}: {e}", path.display()))?,
+            files::associations_from_csv(&read_text(path)?).map_err(bad_input(path.display()))?,
         ),
         None => None,
     };
@@ -331,6 +344,12 @@ pub fn run_slam(a: SlamArgs) -> Result<(), String> {
         .count();
     if let Some(warning) = rejection_warning(rejected, associations.len(), scans, &config) {
         eprintln!("warning: {warning}");
+        if let Some(path) = &a.map_in {
+            eprintln!(
+                "warning: or {} is not the map of this run's track: most detections match none of its cones",
+                path.display()
+            );
+        }
     }
     // Everything is computed before anything is written, so a failure leaves no partial output.
     let (cones, poses) = (slam.map(), slam.trajectory());
@@ -345,7 +364,8 @@ pub fn run_slam(a: SlamArgs) -> Result<(), String> {
     if !finite {
         return Err(format!(
             "{name}: the estimate is not finite (NaN or infinite); nothing written"
-        ));
+        )
+        .into());
     }
     let map = map_to_csv(&cones);
     let traj = files::trajectory_to_tum(&poses);
@@ -389,18 +409,18 @@ pub fn run_slam(a: SlamArgs) -> Result<(), String> {
 
 /// The estimators' settings: the `--config` file's, or those of the
 /// `--noise` preset, with the single values the options give.
-fn slam_config(a: &SlamArgs, kind: EstimatorKind) -> Result<FrontEndConfig, String> {
-    let association = match &a.association {
-        Some(name) => Some(
-            AssociationMethod::by_name(name)
-                .ok_or("--association must be ml, scnn, jcbb or tracking")?,
-        ),
-        None => None,
-    };
+fn slam_config(a: &SlamArgs, kind: EstimatorKind) -> Result<FrontEndConfig, CliError> {
+    let association =
+        match &a.association {
+            Some(name) => Some(AssociationMethod::by_name(name).ok_or_else(|| {
+                CliError::usage("--association must be ml, scnn, jcbb or tracking")
+            })?),
+            None => None,
+        };
     let mut config = match &a.config {
         Some(path) => {
-            let mut config = FrontEndConfig::from_toml(&read_text(path)?)
-                .map_err(|e| format!("{}: {e}", path.display()))?;
+            let mut config =
+                FrontEndConfig::from_toml(&read_text(path)?).map_err(bad_input(path.display()))?;
             describe_detector(&mut config, a)?;
             config
         }
@@ -408,7 +428,7 @@ fn slam_config(a: &SlamArgs, kind: EstimatorKind) -> Result<FrontEndConfig, Stri
             let text = match a.noise.as_deref().unwrap_or("standard") {
                 "standard" => include_str!("../../configs/standard.toml"),
                 "hard" => include_str!("../../configs/hard.toml"),
-                _ => return Err("--noise must be standard or hard".into()),
+                _ => return Err(CliError::usage("--noise must be standard or hard")),
             };
             let mut config = FrontEndConfig::from_toml(text).map_err(|e| e.to_string())?;
             describe_detector(&mut config, a)?;
@@ -428,9 +448,9 @@ fn slam_config(a: &SlamArgs, kind: EstimatorKind) -> Result<FrontEndConfig, Stri
             }
         }
         _ => {
-            return Err(
-                "--motion must be unicycle or bicycle (with a positive --wheelbase)".into(),
-            );
+            return Err(CliError::usage(
+                "--motion must be unicycle or bicycle (with a positive --wheelbase)",
+            ));
         }
     };
     if a.keep_mapping {
@@ -441,17 +461,23 @@ fn slam_config(a: &SlamArgs, kind: EstimatorKind) -> Result<FrontEndConfig, Stri
     }
     let noise = a.odometry_noise.as_deref();
     if !matches!(noise, None | Some("velocity" | "rot-trans-rot")) {
-        return Err("--odometry-noise must be velocity or rot-trans-rot".into());
+        return Err(CliError::usage(
+            "--odometry-noise must be velocity or rot-trans-rot",
+        ));
     }
     let alpha = match &a.alpha {
         Some(v) if v.iter().all(|x| x.is_finite() && *x >= 0.0) => Some([v[0], v[1], v[2], v[3]]),
-        Some(_) => return Err("--alpha values must be finite and ≥ 0".into()),
+        Some(_) => return Err(CliError::usage("--alpha values must be finite and ≥ 0")),
         None => None,
     };
     let rot_trans_rot =
         noise == Some("rot-trans-rot") || (noise.is_none() && config.rot_trans_rot.is_some());
     config.rot_trans_rot = match (rot_trans_rot, alpha) {
-        (false, Some(_)) => return Err("--alpha needs --odometry-noise rot-trans-rot".into()),
+        (false, Some(_)) => {
+            return Err(CliError::usage(
+                "--alpha needs --odometry-noise rot-trans-rot",
+            ));
+        }
         (false, None) => None,
         (true, Some(alpha)) => Some(alpha),
         (true, None) => Some(config.rot_trans_rot.unwrap_or(DEFAULT_ALPHA)),
@@ -460,7 +486,7 @@ fn slam_config(a: &SlamArgs, kind: EstimatorKind) -> Result<FrontEndConfig, Stri
 }
 
 /// Replaces the parts of the detector model that `a` gives.
-fn describe_detector(sensor: &mut FrontEndConfig, a: &SlamArgs) -> Result<(), String> {
+fn describe_detector(sensor: &mut FrontEndConfig, a: &SlamArgs) -> Result<(), CliError> {
     let positive = |v: f64| v.is_finite() && v > 0.0;
     let non_negative = |v: f64| v.is_finite() && v >= 0.0;
     let probability = |v: f64| v > 0.0 && v <= 1.0;
@@ -503,7 +529,7 @@ fn describe_detector(sensor: &mut FrontEndConfig, a: &SlamArgs) -> Result<(), St
     ] {
         if let Some(v) = value {
             if !valid(v) {
-                return Err(format!("{name} must be {rule}"));
+                return Err(CliError::usage(format!("{name} must be {rule}")));
             }
             *target = v;
         }

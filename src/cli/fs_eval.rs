@@ -1,5 +1,6 @@
 //! `cairn fs-eval`: a cone-SLAM run scored against the simulation's truth.
 
+use super::bad_input;
 use super::fs::{TRUTH_ASSOC, TRUTH_MAP, TRUTH_TRAJ, read_text};
 use cairn::plot::{MapPlot, draw};
 use cairn::slam::Cone;
@@ -40,27 +41,27 @@ pub struct EvalArgs {
     title: Option<String>,
 }
 
-pub fn run_eval(a: EvalArgs) -> Result<(), String> {
-    let truth_map = map_from_csv(&read_text(&a.truth.join(TRUTH_MAP))?)
-        .map_err(|e| format!("{TRUTH_MAP}: {e}"))?;
+pub fn run_eval(a: EvalArgs) -> Result<(), super::CliError> {
+    let truth_map =
+        map_from_csv(&read_text(&a.truth.join(TRUTH_MAP))?).map_err(bad_input(TRUTH_MAP))?;
     // A real dataset may have no recorded trajectory (MRCLAM's Dataset 1):
     // the map and the associations are scored, the trajectory is not.
     let truth_traj_path = a.truth.join(TRUTH_TRAJ);
     let truth_traj = if truth_traj_path.exists() {
         Some(
             files::trajectory_from_tum(&read_text(&truth_traj_path)?)
-                .map_err(|e| format!("{TRUTH_TRAJ}: {e}"))?,
+                .map_err(bad_input(TRUTH_TRAJ))?,
         )
     } else {
         None
     };
     let truth_assoc = files::associations_from_csv(&read_text(&a.truth.join(TRUTH_ASSOC))?)
-        .map_err(|e| format!("{TRUTH_ASSOC}: {e}"))?;
-    let map = map_from_csv(&read_text(&a.map)?).map_err(|e| format!("{}: {e}", a.map.display()))?;
-    let traj = files::trajectory_from_tum(&read_text(&a.traj)?)
-        .map_err(|e| format!("{}: {e}", a.traj.display()))?;
+        .map_err(bad_input(TRUTH_ASSOC))?;
+    let map = map_from_csv(&read_text(&a.map)?).map_err(bad_input(a.map.display()))?;
+    let traj =
+        files::trajectory_from_tum(&read_text(&a.traj)?).map_err(bad_input(a.traj.display()))?;
     let assoc = files::associations_from_csv(&read_text(&a.assoc)?)
-        .map_err(|e| format!("{}: {e}", a.assoc.display()))?;
+        .map_err(bad_input(a.assoc.display()))?;
     let mut report = evaluate(
         &truth_map,
         &map,
@@ -75,8 +76,8 @@ pub fn run_eval(a: EvalArgs) -> Result<(), String> {
         report.ate_aligned = f64::NAN;
     }
     if let Some(path) = &a.timing {
-        let v: serde_json::Value = serde_json::from_str(&read_text(path)?)
-            .map_err(|e| format!("{}: {e}", path.display()))?;
+        let v: serde_json::Value =
+            serde_json::from_str(&read_text(path)?).map_err(bad_input(path.display()))?;
         let list = |key: &str| -> Vec<f64> {
             v.get(key)
                 .and_then(|x| x.as_array())

@@ -2,7 +2,7 @@
 //! `cairn fs-smooth`: the batch smoother given the associations.
 
 use super::fs::{EstimateOutputs, LOG, TRUTH_ASSOC, TRUTH_MAP, TRUTH_TRAJ, read_text};
-use super::write_output;
+use super::{CliError, bad_input, write_output};
 use cairn::fs_tools::{mrclam, smoother};
 use cairn::slam::files;
 use cairn::slam::frontend::FrontEndConfig;
@@ -46,14 +46,18 @@ struct MrclamArgs {
     out: PathBuf,
 }
 
-pub fn run(a: ImportArgs) -> Result<(), String> {
+pub fn run(a: ImportArgs) -> Result<(), super::CliError> {
     let Dataset::Mrclam(a) = a.dataset;
     let options = mrclam::Options {
         robot: a.robot,
         ids: a.ids,
     };
-    let import = mrclam::import(&a.dir, &options).map_err(|e| e.to_string())?;
-    std::fs::create_dir_all(&a.out).map_err(|e| format!("{}: {e}", a.out.display()))?;
+    let import = mrclam::import(&a.dir, &options).map_err(|e| match e {
+        mrclam::MrclamError::Io { .. } => CliError::io(e.to_string()),
+        _ => CliError::input(e.to_string()),
+    })?;
+    std::fs::create_dir_all(&a.out)
+        .map_err(|e| CliError::io(format!("{}: {e}", a.out.display())))?;
     write_output(&a.out.join(LOG), to_jsonl(&import.log).as_bytes())?;
     write_output(
         &a.out.join(TRUTH_MAP),
@@ -109,15 +113,16 @@ pub struct SmoothArgs {
     g2o_out: Option<PathBuf>,
 }
 
-pub fn run_smooth(a: SmoothArgs) -> Result<(), String> {
+pub fn run_smooth(a: SmoothArgs) -> Result<(), super::CliError> {
     let name = a.log.display().to_string();
     let log = Log::parse_bytes(&super::read_input(&a.log)?, false, &Default::default())
-        .map_err(|e| format!("{name}: {e}"))?;
+        .map_err(bad_input(&name))?;
     let associations = files::associations_from_csv(&read_text(&a.assoc)?)
-        .map_err(|e| format!("{}: {e}", a.assoc.display()))?;
+        .map_err(bad_input(a.assoc.display()))?;
     let config = match &a.config {
-        Some(path) => FrontEndConfig::from_toml(&read_text(path)?)
-            .map_err(|e| format!("{}: {e}", path.display()))?,
+        Some(path) => {
+            FrontEndConfig::from_toml(&read_text(path)?).map_err(bad_input(path.display()))?
+        }
         None => FrontEndConfig::default(),
     };
     let smoothed = smoother::smooth(&log.records, &associations, &config)

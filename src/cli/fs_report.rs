@@ -54,7 +54,7 @@ pub struct Run {
     pub closures: usize,
 }
 
-pub fn run(a: ReportArgs) -> Result<(), String> {
+pub fn run(a: ReportArgs) -> Result<(), super::CliError> {
     let (tracks, skipped) = load_tracks(&a.tracks, a.random)?;
     let presets = [Preset::standard(), Preset::hard()];
     let mut jobs = Vec::new();

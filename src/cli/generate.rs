@@ -36,13 +36,13 @@ pub struct GenerateArgs {
     seed: u64,
 }
 
-pub fn run(a: GenerateArgs) -> Result<(), String> {
+pub fn run(a: GenerateArgs) -> Result<(), super::CliError> {
     if a.sigma_translation.is_nan()
         || a.sigma_rotation.is_nan()
         || a.sigma_translation <= 0.0
         || a.sigma_rotation <= 0.0
     {
-        return Err("noise σ must be positive".into());
+        return Err(super::CliError::usage("noise σ must be positive"));
     }
     let graph = match a.world {
         World::Manhattan => manhattan(&ManhattanOptions {

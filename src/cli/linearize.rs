@@ -51,7 +51,7 @@ pub struct LinearizeArgs {
     ordering: Vec<OrderingName>,
 }
 
-pub fn run(a: LinearizeArgs) -> Result<(), String> {
+pub fn run(a: LinearizeArgs) -> Result<(), super::CliError> {
     let name = a.file.display().to_string();
     for path in [&a.hessian, &a.jacobian, &a.rhs, &a.columns, &a.rows]
         .into_iter()
@@ -60,7 +60,7 @@ pub fn run(a: LinearizeArgs) -> Result<(), String> {
         super::check_writable(path)?;
     }
     let (mut graph, _) = cairn::g2o::read_bytes(&super::read_input(&a.file)?, &Default::default())
-        .map_err(|e| format!("{name}: {e}"))?;
+        .map_err(super::bad_input(&name))?;
     if a.at_solution {
         let (summary, _) = optimize_from(
             &mut graph,
@@ -120,7 +120,7 @@ pub fn run(a: LinearizeArgs) -> Result<(), String> {
     write_files(&a, &system)
 }
 
-fn write_files(a: &LinearizeArgs, s: &LinearSystem) -> Result<(), String> {
+fn write_files(a: &LinearizeArgs, s: &LinearSystem) -> Result<(), super::CliError> {
     if let Some(path) = &a.hessian {
         // Matrix Market's symmetric format lists the lower triangle.
         let lower = s.hessian.transpose_view().to_csc();

@@ -2,6 +2,7 @@
 
 mod check;
 mod corrupt;
+mod exit;
 mod fs;
 mod fs_eval;
 mod fs_import;
@@ -11,10 +12,12 @@ mod generate;
 mod linearize;
 mod progress;
 mod solve;
+mod solve_output;
 mod study;
 mod study_sweeps;
 
 use clap::{Parser, Subcommand};
+pub use exit::{CliError, bad_input};
 
 /// Cairn: fast, g2o-compatible pose-graph and factor-graph optimisation.
 #[derive(Debug, Parser)]
@@ -60,7 +63,7 @@ enum Command {
 }
 
 /// Runs the parsed command.
-pub fn run(cli: Cli) -> Result<(), String> {
+pub fn run(cli: Cli) -> Result<(), CliError> {
     match cli.command {
         Command::Solve(args) => solve::run(args),
         Command::Generate(args) => generate::run(args),
@@ -78,43 +81,43 @@ pub fn run(cli: Cli) -> Result<(), String> {
 }
 
 /// The bytes of `path`, or of stdin for `-`.
-pub fn read_input(path: &std::path::Path) -> Result<Vec<u8>, String> {
+pub fn read_input(path: &std::path::Path) -> Result<Vec<u8>, CliError> {
     if path.as_os_str() == "-" {
         use std::io::Read;
         let mut bytes = Vec::new();
         std::io::stdin()
             .read_to_end(&mut bytes)
-            .map_err(|e| format!("stdin: {e}"))?;
+            .map_err(|e| CliError::io(format!("stdin: {e}")))?;
         return Ok(bytes);
     }
-    std::fs::read(path).map_err(|e| format!("{}: {e}", path.display()))
+    std::fs::read(path).map_err(|e| CliError::io(format!("{}: {e}", path.display())))
 }
 
 /// Fails early, before a long computation, when `path` cannot be written:
 /// its folder does not exist.
-pub fn check_writable(path: &std::path::Path) -> Result<(), String> {
+pub fn check_writable(path: &std::path::Path) -> Result<(), CliError> {
     if path.as_os_str() == "-" {
         return Ok(());
     }
     match path.parent() {
-        Some(dir) if !dir.as_os_str().is_empty() && !dir.is_dir() => Err(format!(
+        Some(dir) if !dir.as_os_str().is_empty() && !dir.is_dir() => Err(CliError::io(format!(
             "{}: the folder {} does not exist",
             path.display(),
             dir.display()
-        )),
+        ))),
         _ => Ok(()),
     }
 }
 
 /// Writes `bytes` to `path` atomically, or to stdout for `-`.
-pub fn write_output(path: &std::path::Path, bytes: &[u8]) -> Result<(), String> {
+pub fn write_output(path: &std::path::Path, bytes: &[u8]) -> Result<(), CliError> {
     if path.as_os_str() == "-" {
         use std::io::Write;
         let mut out = std::io::stdout().lock();
         return out
             .write_all(bytes)
             .and_then(|_| out.flush())
-            .map_err(|e| format!("stdout: {e}"));
+            .map_err(|e| CliError::io(format!("stdout: {e}")));
     }
-    cairn::g2o::write_atomically(path, bytes).map_err(|e| e.to_string())
+    cairn::g2o::write_atomically(path, bytes).map_err(|e| CliError::io(e.to_string()))
 }

@@ -1,10 +1,14 @@
 //! `cairn solve`: optimise a g2o file.
 
+use super::solve_output::{
+    Times, append_summary, check_outputs, describe_load, report_json, stats_csv, summary_row,
+};
+use super::{CliError, bad_input};
 use cairn::core::RobustKernel;
-use cairn::g2o::{LoadReport, ReadOptions};
+use cairn::g2o::ReadOptions;
 use cairn::solvers::{
     Algorithm, Factorization, Initialization, IterationStats, LevenbergMarquardtConfig,
-    LinearSolverConfig, Optimizer, Ordering, SolverConfig, Summary, optimize_from,
+    LinearSolverConfig, Optimizer, Ordering, SolverConfig, optimize_from,
 };
 use clap::{Args, ValueEnum};
 use std::fmt::Write as _;
@@ -176,6 +180,11 @@ pub struct SolveArgs {
     /// No per-iteration output on stderr.
     #[arg(short, long)]
     quiet: bool,
+    /// Exit with status 5 when the solve does not converge (the iteration
+    /// cap, an indefinite Hessian, a non-finite χ²), after writing its
+    /// result as without it. Without it such a run exits 0, as g2o's does.
+    #[arg(long)]
+    strict: bool,
 }
 
 fn iteration_line(s: &IterationStats, edges: usize) -> String {
@@ -202,159 +211,11 @@ fn start_name(init: Initialization) -> &'static str {
     }
 }
 
-/// Refuses, before the solve, outputs that cannot be written (a missing
-/// folder) and two outputs naming one file, which would overwrite each other.
-fn check_outputs(a: &SolveArgs) -> Result<(), String> {
-    let named: Vec<(&str, &PathBuf)> = [
-        ("-o", &a.output),
-        ("--stats", &a.stats),
-        ("--summary", &a.summary),
-    ]
-    .into_iter()
-    .filter_map(|(flag, p)| p.as_ref().map(|p| (flag, p)))
-    .filter(|(_, p)| p.as_os_str() != "-")
-    .collect();
-    for (_, path) in &named {
-        super::check_writable(path)?;
-    }
-    let same = |p: &PathBuf, q: &PathBuf| {
-        p == q
-            || matches!((std::fs::canonicalize(p), std::fs::canonicalize(q)), (Ok(a), Ok(b)) if a == b)
-    };
-    for (k, (flag, path)) in named.iter().enumerate() {
-        if let Some((other, _)) = named[k + 1..].iter().find(|(_, q)| same(path, q)) {
-            return Err(format!("{flag} and {other} both name {}", path.display()));
-        }
-    }
-    Ok(())
-}
-
-/// Appends `row` to the summary file, with the header if the file is new
-/// or empty. The file is locked while the row is written in one call, so
-/// runs appending at once keep every row; nothing already there is read
-/// or rewritten.
-fn append_summary(path: &std::path::Path, row: &str) -> Result<(), String> {
-    use std::io::Write;
-    let error = |e: std::io::Error| format!("{}: {e}", path.display());
-    let mut file = std::fs::OpenOptions::new()
-        .append(true)
-        .create(true)
-        .open(path)
-        .map_err(error)?;
-    file.lock().map_err(error)?;
-    let empty = file.metadata().map_err(error)?.len() == 0;
-    let text = if empty {
-        format!("{SUMMARY_HEADER}{row}")
-    } else {
-        row.to_string()
-    };
-    file.write_all(text.as_bytes()).map_err(error)
-}
-
-fn stats_csv(summary: &Summary) -> String {
-    let mut out = String::from(
-        "iteration,chi2,lambda,radius,trials,gradient_max,step_max,time_s,cumulative_s,\
-         linearize_s,assemble_s,factorize_s,solve_s,update_s,chi2_s\n",
-    );
-    for s in &summary.trace {
-        let p = &s.phases;
-        let _ = writeln!(
-            out,
-            "{},{:?},{},{},{},{:?},{:?},{:?},{:?},{:?},{:?},{:?},{:?},{:?},{:?}",
-            s.iteration,
-            s.chi2,
-            s.lambda.map_or(String::new(), |l| format!("{l:?}")),
-            s.radius.map_or(String::new(), |r| format!("{r:?}")),
-            s.trials,
-            s.gradient_max,
-            s.step_max,
-            s.time,
-            s.cumulative_time,
-            p.linearize,
-            p.assemble,
-            p.factorize,
-            p.solve,
-            p.update,
-            p.chi2
-        );
-    }
-    out
-}
-
-const SUMMARY_HEADER: &str = "file,algorithm,vertices,edges,initial_chi2,final_chi2,iterations,termination,\
-                              load_s,solve_s,write_s\n";
-
-struct Times {
-    load: f64,
-    solve: f64,
-    write: f64,
-}
-
-fn summary_row(file: &str, v: usize, e: usize, s: &Summary, t: &Times) -> String {
-    format!(
-        "{},{},{},{},{:?},{:?},{},{:?},{:?},{:?},{:?}\n",
-        file,
-        s.algorithm.short_name(),
-        v,
-        e,
-        s.initial_chi2,
-        s.final_chi2,
-        s.iterations,
-        s.termination,
-        t.load,
-        t.solve,
-        t.write
-    )
-}
-
-fn report_json(r: &LoadReport) -> serde_json::Value {
-    serde_json::json!({
-        "lines": r.lines,
-        "records": r.records,
-        "unknown": r.unknown,
-        "extra_fields": r.extra_fields,
-        "created_vertices": r.created_vertices,
-        "landmark_id_offset": r.landmark_id_offset,
-        "repaired_information": r.repaired_information.len(),
-        "fixed": r.fixed,
-        "spanning_tree_roots": r.spanning_tree.as_ref().map(|s| s.roots.clone()),
-    })
-}
-
-fn describe_load(name: &str, r: &LoadReport, vertices: usize, edges: usize) -> String {
-    let mut s = format!("loaded {name}: {vertices} vertices, {edges} edges");
-    if r.unknown_lines() > 0 {
-        let tags: Vec<String> = r.unknown.iter().map(|(t, n)| format!("{t} ×{n}")).collect();
-        let _ = write!(
-            s,
-            "; skipped {} lines with unsupported tags ({})",
-            r.unknown_lines(),
-            tags.join(", ")
-        );
-    }
-    if r.created_vertices > 0 {
-        let _ = write!(
-            s,
-            "; created {} vertices from the edges, initialised by spanning tree",
-            r.created_vertices
-        );
-    }
-    if let Some(off) = r.landmark_id_offset {
-        let _ = write!(s, "; LANDMARK2 landmark l is vertex {off}+l");
-    }
-    if !r.repaired_information.is_empty() {
-        let _ = write!(
-            s,
-            "; repaired {} information matrices that were not positive definite",
-            r.repaired_information.len()
-        );
-    }
-    s
-}
-
-pub fn run(a: SolveArgs) -> Result<(), String> {
+pub fn run(a: SolveArgs) -> Result<(), super::CliError> {
     if a.json && a.output.as_ref().is_some_and(|o| o.as_os_str() == "-") {
-        return Err("--json and -o - both want stdout; write the graph to a file".into());
+        return Err(CliError::usage(
+            "--json and -o - both want stdout; write the graph to a file",
+        ));
     }
     // The whole solve runs on one of the pool's threads: the solver's
     // parallel loops then start from inside the pool instead of handing
@@ -370,32 +231,36 @@ pub fn run(a: SolveArgs) -> Result<(), String> {
 }
 
 /// `cairn solve`, on the calling thread.
-fn solve(a: SolveArgs) -> Result<(), String> {
+fn solve(a: SolveArgs) -> Result<(), CliError> {
     let name = a.file.display().to_string();
-    check_outputs(&a)?;
+    check_outputs(&[
+        ("-o", a.output.as_ref()),
+        ("--stats", a.stats.as_ref()),
+        ("--summary", a.summary.as_ref()),
+    ])?;
     let t = Instant::now();
     let options = ReadOptions {
         repair_information: a.repair_information,
     };
     // The file's bytes are dropped once parsed: on a 10⁶-pose file they are
     // 250 MB that the solve does not need.
-    let (mut graph, report) = cairn::g2o::read_bytes(&super::read_input(&a.file)?, &options)
-        .map_err(|e| format!("{name}: {e}"))?;
+    let (mut graph, report) =
+        cairn::g2o::read_bytes(&super::read_input(&a.file)?, &options).map_err(bad_input(&name))?;
     for &id in &a.fix {
         graph
             .set_fixed(id, true)
-            .map_err(|e| format!("--fix: {e}"))?;
+            .map_err(|e| CliError::usage(format!("--fix: {e}")))?;
     }
     if let Some(name) = &a.robust_kernel {
         let kernel = RobustKernel::from_name(name, a.robust_kernel_width).ok_or_else(|| {
-            format!(
+            CliError::usage(format!(
                 "unknown robust kernel {name:?}; choose one of {}",
                 RobustKernel::NAMES.join(", ")
-            )
+            ))
         })?;
         // Also rejects NaN.
         if a.robust_kernel_width.is_nan() || a.robust_kernel_width <= 0.0 {
-            return Err("--robust-kernel-width must be positive".into());
+            return Err(CliError::usage("--robust-kernel-width must be positive"));
         }
         cairn::outliers::set_robust_kernel(&mut graph, kernel, a.non_sequential);
     }
@@ -411,13 +276,12 @@ fn solve(a: SolveArgs) -> Result<(), String> {
     };
     let tau = a.tau.unwrap_or(lm.tau);
     if !(tau > 0.0 && tau.is_finite()) {
-        return Err("--tau must be positive and finite".into());
+        return Err(CliError::usage("--tau must be positive and finite"));
     }
     if a.stop_on_increase && !matches!(a.solver, SolverName::Gn) {
-        return Err(
-            "--stop-on-increase is for --solver gn: LM and dogleg control their steps themselves"
-                .into(),
-        );
+        return Err(CliError::usage(
+            "--stop-on-increase is for --solver gn: LM and dogleg control their steps themselves",
+        ));
     }
     let config = SolverConfig {
         algorithm: match a.solver {
@@ -470,7 +334,15 @@ fn solve(a: SolveArgs) -> Result<(), String> {
     .map_err(|e| format!("{name}: {e}"))?;
     let solve = t.elapsed().as_secs_f64();
     let end_chi2 = graph.chi2();
-    let kept_start = end_chi2.is_nan() || end_chi2 > start_chi2;
+    if summary.returned_lowest {
+        eprintln!(
+            "warning: {name}: the last iterate ({:?}) was above the lowest χ² met, {:.6e}; \
+             that estimate is the result",
+            summary.termination, summary.final_chi2
+        );
+    }
+    // (With DCS a lower χ² is not a better estimate: only NaN is refused.)
+    let kept_start = end_chi2.is_nan() || (end_chi2 > start_chi2 && graph.chi2_is_objective());
     if kept_start {
         graph
             .values_mut()
@@ -557,6 +429,12 @@ fn solve(a: SolveArgs) -> Result<(), String> {
         });
         println!("{value}");
     }
+    if a.strict && !summary.termination.converged() {
+        return Err(CliError::not_converged(format!(
+            "{name}: the solve did not converge ({:?}; --strict)",
+            summary.termination
+        )));
+    }
     Ok(())
 }
 
@@ -566,7 +444,7 @@ fn marginal_ids(
     args: &[String],
     graph: &cairn_core::Graph,
     gauge: &[i64],
-) -> Result<Vec<i64>, String> {
+) -> Result<Vec<i64>, CliError> {
     if args.iter().any(|a| a == "all") {
         return Ok(graph
             .vertices()
@@ -576,9 +454,9 @@ fn marginal_ids(
     }
     args.iter()
         .map(|a| {
-            a.trim()
-                .parse()
-                .map_err(|_| format!("--marginals: '{a}' is neither a vertex id nor all"))
+            a.trim().parse().map_err(|_| {
+                CliError::usage(format!("--marginals: '{a}' is neither a vertex id nor all"))
+            })
         })
         .collect()
 }

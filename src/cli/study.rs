@@ -70,7 +70,7 @@ const THESIS_ASSOCIATION: [(AssociationMethod, f64); 3] = [
     (AssociationMethod::Tracking, 0.98),
 ];
 
-pub fn run(a: StudyArgs) -> Result<(), String> {
+pub fn run(a: StudyArgs) -> Result<(), super::CliError> {
     let (mut tracks, skipped) = match load_tracks(&a.tracks, a.random) {
         Ok(found) => found,
         Err(e) if !a.tracks.exists() => {
@@ -79,7 +79,7 @@ pub fn run(a: StudyArgs) -> Result<(), String> {
                 (0..a.random.max(1)).map(|seed| random_track(seed, &TrackRules::default()));
             (random.collect(), Vec::new())
         }
-        Err(e) => return Err(e),
+        Err(e) => return Err(e.into()),
     };
     if let Some(n) = a.max_tracks {
         // Keep the random tracks (at the end) and the first shared ones.

@@ -269,6 +269,8 @@ impl GraphSlam {
                 self.motion.record(*t, *v, *yaw_rate, *steer, correction);
             }
             Record::Cones { t, cones } => {
+                // A `start` record once the run has begun is ignored.
+                self.started = true;
                 self.motion.advance(*t, self.calibration.correction());
                 let start = Instant::now();
                 self.update(*t, cones);
