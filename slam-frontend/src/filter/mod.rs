@@ -132,6 +132,7 @@ struct Run {
     known_landmark: HashMap<usize, usize>,
     /// A given map, until the car has been placed on it.
     unplaced: Option<Vec<(Vector2<f64>, Color)>>,
+    placement: align::Placement,
     /// The pose of the first scan, where a lap ends.
     first_pose: Option<SE2>,
     colors: ColorRate,
@@ -153,6 +154,7 @@ impl Run {
             known: None,
             known_landmark: HashMap::new(),
             unplaced: None,
+            placement: align::Placement::default(),
             first_pose: None,
         }
     }
@@ -169,7 +171,7 @@ impl Run {
         let Some(map) = &self.unplaced else {
             return Ok(None);
         };
-        let pose = align::place(map, cones, here).ok_or(())?;
+        let pose = self.placement.try_place(map, cones, here).ok_or(())?;
         self.unplaced = None;
         Ok(Some(pose))
     }

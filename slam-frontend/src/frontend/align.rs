@@ -31,6 +31,39 @@ pub fn place(map: &[(Vector2<f64>, Color)], detections: &[Detection], here: &SE2
         .map(|(p, _)| p)
 }
 
+/// Map cones per scan let pass after a failed try at placing the car.
+const CONES_PER_WAITING_SCAN: usize = 200;
+
+/// Placing the car on a given map scan after scan until one fits. A failed
+/// try costs time in proportion to the map's pairs of cones, so the next
+/// waits a scan per [`CONES_PER_WAITING_SCAN`] cones of the map (a
+/// 2,000-cone map that the car is not on: 4 ms per scan instead of 44).
+#[derive(Clone, Debug, Default)]
+pub struct Placement {
+    /// Scans to let pass before the next try.
+    wait: usize,
+}
+
+impl Placement {
+    /// [`place`] on this scan, unless it is one to let pass.
+    pub fn try_place(
+        &mut self,
+        map: &[(Vector2<f64>, Color)],
+        detections: &[Detection],
+        here: &SE2,
+    ) -> Option<SE2> {
+        if self.wait > 0 {
+            self.wait -= 1;
+            return None;
+        }
+        let found = place(map, detections, here);
+        if found.is_none() {
+            self.wait = map.len() / CONES_PER_WAITING_SCAN;
+        }
+        found
+    }
+}
+
 /// Place recognition at the end of a lap: the pose near `pose` that puts
 /// the scan on `old` landmarks (those that left the view long ago), when at
 /// least `needed` detections agree. Drift can put
@@ -307,6 +340,28 @@ mod tests {
                 covariance: None,
             })
             .collect()
+    }
+
+    #[test]
+    fn after_a_failed_try_a_large_map_lets_scans_pass() {
+        // The row, and far away 400 cones of clutter: a 416-cone map.
+        let mut map = row();
+        map.extend((0..400).map(|k| (Vector2::new(1e4 + 7.0 * f64::from(k), 50.0), Color::Blue)));
+        let truth = SE2::new(1.0, 0.2, 0.05);
+        let fits = scan(&map, &truth);
+        let mut placement = Placement::default();
+        // A scan of nothing on the map fails; the next two scans wait.
+        let empty = [];
+        assert!(placement.try_place(&map, &empty, &truth).is_none());
+        assert!(placement.try_place(&map, &fits, &truth).is_none());
+        assert!(placement.try_place(&map, &fits, &truth).is_none());
+        let placed = placement.try_place(&map, &fits, &truth).expect("placed");
+        assert!(placed.between(&truth).t.norm() < 1e-6);
+        // A small map tries every scan.
+        let small = row();
+        let mut placement = Placement::default();
+        assert!(placement.try_place(&small, &empty, &truth).is_none());
+        assert!(placement.try_place(&small, &fits, &truth).is_some());
     }
 
     #[test]

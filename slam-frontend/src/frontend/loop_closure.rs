@@ -180,7 +180,8 @@ impl GraphSlam {
             .collect()
     }
 
-    /// Places the car on the given map ([`align::place`]).
+    /// Places the car on the given map, if this scan may try
+    /// ([`align::Placement`]).
     pub(super) fn align_to_map(&mut self, cones: &[Detection]) -> bool {
         let map: Vec<(Vector2<f64>, Color)> = self
             .landmarks
@@ -188,7 +189,7 @@ impl GraphSlam {
             .map(|l| (l.mean, l.sighting.color()))
             .collect();
         let here = self.pose.compose(&self.motion.pending());
-        let found = align::place(&map, cones, &here);
+        let found = self.placement.try_place(&map, cones, &here);
         let Some(pose) = found else { return false };
         self.pose = pose;
         self.pose_cov = Matrix3::from_diagonal(&nalgebra::Vector3::new(0.25, 0.25, 0.05));

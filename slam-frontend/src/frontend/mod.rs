@@ -105,6 +105,8 @@ pub struct GraphSlam {
     started: bool,
     /// False until the first scan has been placed on a given map.
     aligned: bool,
+    /// Tries at placing the car on a given map.
+    placement: align::Placement,
     loop_closures: usize,
     /// Distance driven at the last loop closure.
     closed_at: Option<f64>,
@@ -141,6 +143,7 @@ impl GraphSlam {
             scans: 0,
             started: false,
             aligned: true,
+            placement: align::Placement::default(),
             loop_closures: 0,
             closed_at: None,
             calibration: Calibration::default(),
