@@ -170,6 +170,13 @@ fn out_of_range_options_are_refused_by_name() {
             vec!["solve", "-q", s(&input), "--threads", "100000"],
             "--threads",
         ),
+        (vec!["fs-sim", "--laps", "1e9", "-o", s(&out)], "--laps"),
+        (vec!["fs-sim", "--speed", "1e-9", "-o", s(&out)], "--speed"),
+        (vec!["fs-sim", "--speed", "nan", "-o", s(&out)], "--speed"),
+        (
+            vec!["fs-sim", "--laps", "900", "--speed", "0.1", "-o", s(&out)],
+            "at most 86400 s",
+        ),
     ] {
         let o = cairn(&args);
         let said = String::from_utf8_lossy(&o.stderr);

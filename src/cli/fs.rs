@@ -1,21 +1,21 @@
 //! The Formula Student commands `fs-sim` and `fs-slam` (`fs-eval` is in `fs_eval.rs`).
 
+mod settings;
+
 use super::{CliError, bad_input, write_output};
-use cairn::slam::Track;
 use cairn::slam::course::Course;
 use cairn::slam::estimator::{EstimatorBuilder, EstimatorKind};
 use cairn::slam::eval::latency_ms;
 use cairn::slam::files;
-use cairn::slam::frontend::association::AssociationMethod;
-use cairn::slam::frontend::{FrontEndConfig, MotionModel};
 use cairn::slam::log::{Log, Record, ScanLimits, to_jsonl};
-use cairn::slam::motion::DEFAULT_ALPHA;
 use cairn::slam::points::PointCloudConfig;
 use cairn::slam::sim::{Preset, SimConfig, point_clouds, simulate};
 use cairn::slam::track::TrackError;
 use cairn::slam::track::{map_from_csv, map_to_csv};
 use cairn::slam::trackgen::{TrackRules, random_track};
+use cairn::slam::{Track, TrackKind};
 use clap::Args;
+use settings::{rejection_warning, slam_config};
 use std::path::{Path, PathBuf};
 
 /// File names inside a simulation directory.
@@ -37,10 +37,10 @@ pub struct SimArgs {
     /// Sensor and odometry errors: `standard` or `hard`.
     #[arg(long, default_value = "standard")]
     preset: String,
-    /// Laps to drive (acceleration runs are driven once).
+    /// Laps to drive, above 0 and at most 1000 (acceleration runs are driven once).
     #[arg(long, default_value_t = 2.0)]
     laps: f64,
-    /// Speed (m/s).
+    /// Speed, 0.1 to 100 m/s. The run may last at most a day.
     #[arg(long, default_value_t = 5.0)]
     speed: f64,
     /// Random seed (track generation and noise).
@@ -160,8 +160,8 @@ pub struct SlamArgs {
     /// α₁,α₂,α₃,α₄ of the rot-trans-rot model.
     #[arg(long, value_delimiter = ',', num_args = 4)]
     alpha: Option<Vec<f64>>,
-    /// FastSLAM particles.
-    #[arg(long, default_value_t = 100)]
+    /// FastSLAM particles, 1 to 100,000.
+    #[arg(long, default_value_t = 100, value_parser = clap::builder::RangedU64ValueParser::<usize>::new().range(1..=100000))]
     particles: usize,
     /// FastSLAM sampler seed.
     #[arg(long, default_value_t = 0)]
@@ -183,6 +183,15 @@ fn track_error(path: &Path) -> impl FnOnce(TrackError) -> CliError + '_ {
         _ => CliError::input(format!("{}: {e}", path.display())),
     }
 }
+
+/// Most laps `fs-sim` drives.
+const MAX_LAPS: f64 = 1000.0;
+
+/// The speeds it drives at (m/s).
+const SPEEDS: std::ops::RangeInclusive<f64> = 0.1..=100.0;
+
+/// The longest run it simulates (s).
+const MAX_DURATION: f64 = 86_400.0;
 
 /// The rules of `fs-sim`'s random track.
 fn track_rules(a: &SimArgs) -> Result<TrackRules, CliError> {
@@ -207,8 +216,19 @@ fn track_rules(a: &SimArgs) -> Result<TrackRules, CliError> {
 pub fn run_sim(a: SimArgs) -> Result<(), super::CliError> {
     let preset = Preset::by_name(&a.preset)
         .ok_or_else(|| CliError::usage("--preset must be standard or hard"))?;
-    if !(a.laps > 0.0 && a.speed > 0.0 && a.laps.is_finite() && a.speed.is_finite()) {
-        return Err(CliError::usage("--laps and --speed must be positive"));
+    if !(a.laps > 0.0 && a.laps <= MAX_LAPS) {
+        return Err(CliError::usage(format!(
+            "--laps must be above 0 and at most {MAX_LAPS}, got {}",
+            a.laps
+        )));
+    }
+    if !(SPEEDS.contains(&a.speed)) {
+        return Err(CliError::usage(format!(
+            "--speed must be from {} to {} m/s, got {}",
+            SPEEDS.start(),
+            SPEEDS.end(),
+            a.speed
+        )));
     }
     let rules = track_rules(&a)?;
     let (track, course) = match &a.track {
@@ -219,6 +239,19 @@ pub fn run_sim(a: SimArgs) -> Result<(), super::CliError> {
         }
         None => random_track(a.track_seed.unwrap_or(a.seed), &rules),
     };
+    let laps = if track.kind == TrackKind::Acceleration {
+        1.0
+    } else {
+        a.laps
+    };
+    let duration = laps * course.length() / a.speed;
+    if duration > MAX_DURATION {
+        return Err(CliError::usage(format!(
+            "{laps} laps of {:.0} m at {} m/s last {duration:.0} s; the simulator runs at most {MAX_DURATION} s (a day)",
+            course.length(),
+            a.speed
+        )));
+    }
     let config = SimConfig {
         preset,
         laps: a.laps,
@@ -275,9 +308,6 @@ pub fn run_slam(a: SlamArgs) -> Result<(), super::CliError> {
     let kind = EstimatorKind::by_name(&a.estimator)
         .ok_or_else(|| CliError::usage("--estimator must be graph, ekf, fastslam1 or fastslam2"))?;
     let config = slam_config(&a, kind)?;
-    if a.particles == 0 {
-        return Err(CliError::usage("--particles must be positive"));
-    }
     let limits = ScanLimits {
         detections: a.max_detections,
         points: a.max_points,
@@ -405,172 +435,4 @@ pub fn run_slam(a: SlamArgs) -> Result<(), super::CliError> {
         lat[1]
     );
     Ok(())
-}
-
-/// The estimators' settings: the `--config` file's, or those of the
-/// `--noise` preset, with the single values the options give.
-fn slam_config(a: &SlamArgs, kind: EstimatorKind) -> Result<FrontEndConfig, CliError> {
-    let association =
-        match &a.association {
-            Some(name) => Some(AssociationMethod::by_name(name).ok_or_else(|| {
-                CliError::usage("--association must be ml, scnn, jcbb or tracking")
-            })?),
-            None => None,
-        };
-    let mut config = match &a.config {
-        Some(path) => {
-            let mut config =
-                FrontEndConfig::from_toml(&read_text(path)?).map_err(bad_input(path.display()))?;
-            describe_detector(&mut config, a)?;
-            config
-        }
-        None => {
-            let text = match a.noise.as_deref().unwrap_or("standard") {
-                "standard" => include_str!("../../configs/standard.toml"),
-                "hard" => include_str!("../../configs/hard.toml"),
-                _ => return Err(CliError::usage("--noise must be standard or hard")),
-            };
-            let mut config = FrontEndConfig::from_toml(text).map_err(|e| e.to_string())?;
-            describe_detector(&mut config, a)?;
-            config.gate = FrontEndConfig::preset_gate(kind, config.false_positives);
-            config
-        }
-    };
-    if let Some(method) = association {
-        config.association = method;
-    }
-    config.motion = match (a.motion.as_deref(), config.motion) {
-        (None, motion) => motion,
-        (Some("unicycle"), _) => MotionModel::Unicycle,
-        (Some("bicycle"), _) if a.wheelbase > 0.0 && a.wheelbase.is_finite() => {
-            MotionModel::Bicycle {
-                wheelbase: a.wheelbase,
-            }
-        }
-        _ => {
-            return Err(CliError::usage(
-                "--motion must be unicycle or bicycle (with a positive --wheelbase)",
-            ));
-        }
-    };
-    if a.keep_mapping {
-        config.localise_after_loop = false;
-    }
-    if a.no_hindsight {
-        config.hindsight = false;
-    }
-    let noise = a.odometry_noise.as_deref();
-    if !matches!(noise, None | Some("velocity" | "rot-trans-rot")) {
-        return Err(CliError::usage(
-            "--odometry-noise must be velocity or rot-trans-rot",
-        ));
-    }
-    let alpha = match &a.alpha {
-        Some(v) if v.iter().all(|x| x.is_finite() && *x >= 0.0) => Some([v[0], v[1], v[2], v[3]]),
-        Some(_) => return Err(CliError::usage("--alpha values must be finite and ≥ 0")),
-        None => None,
-    };
-    let rot_trans_rot =
-        noise == Some("rot-trans-rot") || (noise.is_none() && config.rot_trans_rot.is_some());
-    config.rot_trans_rot = match (rot_trans_rot, alpha) {
-        (false, Some(_)) => {
-            return Err(CliError::usage(
-                "--alpha needs --odometry-noise rot-trans-rot",
-            ));
-        }
-        (false, None) => None,
-        (true, Some(alpha)) => Some(alpha),
-        (true, None) => Some(config.rot_trans_rot.unwrap_or(DEFAULT_ALPHA)),
-    };
-    Ok(config)
-}
-
-/// Replaces the parts of the detector model that `a` gives.
-fn describe_detector(sensor: &mut FrontEndConfig, a: &SlamArgs) -> Result<(), CliError> {
-    let positive = |v: f64| v.is_finite() && v > 0.0;
-    let non_negative = |v: f64| v.is_finite() && v >= 0.0;
-    let probability = |v: f64| v > 0.0 && v <= 1.0;
-    for (value, target, name, valid, rule) in [
-        (
-            a.range_sigma,
-            &mut sensor.range_sigma,
-            "--range-sigma",
-            &positive as &dyn Fn(f64) -> bool,
-            "finite and positive",
-        ),
-        (
-            a.range_sigma_relative,
-            &mut sensor.range_sigma_relative,
-            "--range-sigma-relative",
-            &non_negative,
-            "finite and ≥ 0",
-        ),
-        (
-            a.bearing_sigma_deg.map(f64::to_radians),
-            &mut sensor.bearing_sigma,
-            "--bearing-sigma-deg",
-            &positive,
-            "finite and positive",
-        ),
-        (
-            a.detection_probability,
-            &mut sensor.detection_probability,
-            "--detection-probability",
-            &probability,
-            "in (0, 1]",
-        ),
-        (
-            a.false_positives,
-            &mut sensor.false_positives,
-            "--false-positives",
-            &non_negative,
-            "finite and ≥ 0",
-        ),
-    ] {
-        if let Some(v) = value {
-            if !valid(v) {
-                return Err(CliError::usage(format!("{name} must be {rule}")));
-            }
-            *target = v;
-        }
-    }
-    Ok(())
-}
-
-/// How far the fraction of detections rejected as spurious may exceed the
-/// false positives the detector is assumed to make before `fs-slam` warns.
-/// A detector as noisy as assumed loses its false positives and 1–2% more
-/// (far, ambiguous cones); a `hard` log read with the `standard` noise loses
-/// about half of all detections.
-const EXCESS_REJECTED_WARNING: f64 = 0.1;
-
-/// The warning for a run that rejected far more detections than the
-/// assumed detector's false positives (`config.false_positives` in each of
-/// `scans`): the usual sign that the detector is noisier than assumed, so
-/// that its detections fall outside the gates.
-fn rejection_warning(
-    rejected: usize,
-    detections: usize,
-    scans: usize,
-    config: &FrontEndConfig,
-) -> Option<String> {
-    let fraction = rejected as f64 / detections.max(1) as f64;
-    let false_positives =
-        (config.false_positives * scans as f64 / detections.max(1) as f64).min(1.0);
-    (detections >= 100 && fraction > false_positives + EXCESS_REJECTED_WARNING).then(|| {
-        format!(
-            "{:.0}% of the detections were rejected as spurious, where the detector is assumed \
-             to make {:.0}% false positives. If it is noisier than assumed (range σ {} m + {}·r, \
-             bearing σ {:.2}°, detection probability {}, {} false positives per scan), say so \
-             with --noise hard or --range-sigma, --range-sigma-relative, --bearing-sigma-deg, \
-             --detection-probability and --false-positives",
-            100.0 * fraction,
-            100.0 * false_positives,
-            config.range_sigma,
-            config.range_sigma_relative,
-            config.bearing_sigma.to_degrees(),
-            config.detection_probability,
-            config.false_positives,
-        )
-    })
 }

@@ -25,17 +25,17 @@ pub struct ReportArgs {
     /// Directory of track files (the shared tracks).
     #[arg(long, default_value = "../shared/tracks")]
     tracks: PathBuf,
-    /// Random generated tracks to add.
-    #[arg(long, default_value_t = 3)]
+    /// Random generated tracks to add, 0 to 1000.
+    #[arg(long, default_value_t = 3, value_parser = clap::builder::RangedU64ValueParser::<u64>::new().range(0..=1000))]
     random: u64,
-    /// Seeds per configuration.
-    #[arg(long, default_value_t = 5)]
+    /// Seeds per configuration, 1 to 1000.
+    #[arg(long, default_value_t = 5, value_parser = clap::builder::RangedU64ValueParser::<u64>::new().range(1..=1000))]
     seeds: u64,
     /// The first seed: the runs take `first-seed` to `first-seed + seeds − 1`,
     /// so that a change can be judged on seeds it was not tuned on.
     #[arg(long, default_value_t = 0)]
     first_seed: u64,
-    /// Laps per run.
+    /// Laps per run, above 0 and at most 100.
     #[arg(long, default_value_t = 2.0)]
     laps: f64,
     /// Markdown output; plots go into a folder beside it.
@@ -55,6 +55,12 @@ pub struct Run {
 }
 
 pub fn run(a: ReportArgs) -> Result<(), super::CliError> {
+    if !(a.laps > 0.0 && a.laps <= 100.0) {
+        return Err(super::CliError::usage(format!(
+            "--laps must be above 0 and at most 100, got {}",
+            a.laps
+        )));
+    }
     let (tracks, skipped) = load_tracks(&a.tracks, a.random)?;
     let presets = [Preset::standard(), Preset::hard()];
     let mut jobs = Vec::new();

@@ -29,18 +29,18 @@ pub struct StudyArgs {
     /// random tracks are used.
     #[arg(long, default_value = "../shared/tracks")]
     tracks: PathBuf,
-    /// Random generated tracks to add.
-    #[arg(long, default_value_t = 1)]
+    /// Random generated tracks to add, 0 to 1000.
+    #[arg(long, default_value_t = 1, value_parser = clap::builder::RangedU64ValueParser::<u64>::new().range(0..=1000))]
     random: u64,
     /// Use at most this many tracks (all by default).
     #[arg(long)]
     max_tracks: Option<usize>,
-    /// Seeds per configuration.
-    #[arg(long, default_value_t = 1)]
+    /// Seeds per configuration, 1 to 1000.
+    #[arg(long, default_value_t = 1, value_parser = clap::builder::RangedU64ValueParser::<u64>::new().range(1..=1000))]
     seeds: u64,
-    /// FastSLAM particles in the main table. FastSLAM runs JCBB per
-    /// particle, which dominates the study's time.
-    #[arg(long, default_value_t = 100)]
+    /// FastSLAM particles in the main table, 1 to 100,000. FastSLAM runs
+    /// JCBB per particle, which dominates the study's time.
+    #[arg(long, default_value_t = 100, value_parser = clap::builder::RangedU64ValueParser::<usize>::new().range(1..=100000))]
     particles: usize,
     /// Markdown output; plots go into a folder beside it.
     #[arg(short, long, default_value = "docs/estimators.md")]
