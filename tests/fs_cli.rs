@@ -402,3 +402,49 @@ fn localising_on_another_tracks_map_is_warned_about() {
     let said = String::from_utf8_lossy(&o.stderr);
     assert!(!said.contains("is not the map"), "{said}");
 }
+
+/// `fs-eval` scores a map and trajectory without associations, and refuses
+/// a plot format it cannot write before doing any work.
+#[test]
+fn fs_eval_without_associations_and_with_a_plot_it_cannot_write() {
+    let dir = temp_dir("eval-noassoc");
+    simulate_short_run(&dir, &[]);
+    let (map, traj) = (dir.join("m.csv"), dir.join("t.tum"));
+    let log = dir.join("log.jsonl");
+    let o = cairn(&[
+        "fs-slam",
+        s(&log),
+        "--map-out",
+        s(&map),
+        "--traj-out",
+        s(&traj),
+    ]);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let eval = |extra: &[&str]| {
+        let mut args = vec![
+            "fs-eval",
+            "--truth",
+            s(&dir),
+            "--map",
+            s(&map),
+            "--traj",
+            s(&traj),
+        ];
+        args.extend(extra);
+        cairn(&args)
+    };
+    let o = eval(&[]);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let table = String::from_utf8_lossy(&o.stdout);
+    assert!(table.contains("not scored (no --assoc)"), "{table}");
+    assert!(table.contains("map RMSE (m)"), "{table}");
+    let o = eval(&["--json"]);
+    let json: serde_json::Value = serde_json::from_slice(&o.stdout).unwrap();
+    assert!(json["association_accuracy"].is_null());
+    assert!(json["map_rmse"].as_f64().is_some_and(|e| e < 0.5));
+    let pdf = dir.join("plot.pdf");
+    let o = eval(&["--plot", s(&pdf)]);
+    assert_eq!(o.status.code(), Some(2));
+    assert!(String::from_utf8_lossy(&o.stderr).contains(".svg or .png"));
+    assert!(!pdf.exists());
+}

@@ -186,6 +186,33 @@ fn out_of_range_options_are_refused_by_name() {
     let _ = std::fs::remove_dir_all(&dir);
 }
 
+/// `solve -o - | head -1`: the reader leaving early is no failure.
+#[test]
+fn a_closed_stdout_is_not_an_error() {
+    use std::io::{BufRead, BufReader};
+    let dir = folder("pipe");
+    let graph = dir.join("graph.g2o");
+    let o = cairn(&["generate", "manhattan", "-n", "3000", "-o", s(&graph)]);
+    assert!(o.status.success());
+    let mut child = Command::new(env!("CARGO_BIN_EXE_cairn"))
+        .args(["solve", "-q", "-o", "-", s(&graph)])
+        .stdout(std::process::Stdio::piped())
+        .stderr(std::process::Stdio::piped())
+        .spawn()
+        .expect("runs");
+    let mut first = String::new();
+    BufReader::new(child.stdout.take().unwrap())
+        .read_line(&mut first)
+        .unwrap();
+    // The pipe is closed here, long before the 3,000 poses are written.
+    assert!(first.starts_with("VERTEX_SE2"), "{first}");
+    let o = child.wait_with_output().unwrap();
+    let said = String::from_utf8_lossy(&o.stderr);
+    assert!(o.status.success(), "{:?}: {said}", o.status);
+    assert!(!said.contains("Broken pipe"), "{said}");
+    let _ = std::fs::remove_dir_all(&dir);
+}
+
 /// SIGINT or SIGTERM while the result is being written: status 130, the
 /// target as it was, and no temporary file left.
 #[test]

@@ -24,16 +24,17 @@ pub struct EvalArgs {
     /// Estimated trajectory (TUM).
     #[arg(long)]
     traj: PathBuf,
-    /// Estimated associations (CSV).
+    /// Estimated associations (CSV); without them the association accuracy
+    /// is not scored.
     #[arg(long)]
-    assoc: PathBuf,
+    assoc: Option<PathBuf>,
     /// Timings written by `fs-slam --timing-out`.
     #[arg(long)]
     timing: Option<PathBuf>,
     /// Print JSON instead of a table.
     #[arg(long)]
     json: bool,
-    /// Draw the map over the truth and both trajectories (SVG, or PNG by extension).
+    /// Draw the map over the truth and both trajectories: FILE.svg or FILE.png.
     #[arg(long)]
     plot: Option<PathBuf>,
     /// The plot's title (default: the map's path).
@@ -42,6 +43,9 @@ pub struct EvalArgs {
 }
 
 pub fn run_eval(a: EvalArgs) -> Result<(), super::CliError> {
+    if let Some(path) = &a.plot {
+        check_plot_format(path)?;
+    }
     let truth_map =
         map_from_csv(&read_text(&a.truth.join(TRUTH_MAP))?).map_err(bad_input(TRUTH_MAP))?;
     // A real dataset may have no recorded trajectory (MRCLAM's Dataset 1):
@@ -55,13 +59,17 @@ pub fn run_eval(a: EvalArgs) -> Result<(), super::CliError> {
     } else {
         None
     };
-    let truth_assoc = files::associations_from_csv(&read_text(&a.truth.join(TRUTH_ASSOC))?)
-        .map_err(bad_input(TRUTH_ASSOC))?;
+    let (truth_assoc, assoc) = match &a.assoc {
+        Some(path) => (
+            files::associations_from_csv(&read_text(&a.truth.join(TRUTH_ASSOC))?)
+                .map_err(bad_input(TRUTH_ASSOC))?,
+            files::associations_from_csv(&read_text(path)?).map_err(bad_input(path.display()))?,
+        ),
+        None => (Vec::new(), Vec::new()),
+    };
     let map = map_from_csv(&read_text(&a.map)?).map_err(bad_input(a.map.display()))?;
     let traj =
         files::trajectory_from_tum(&read_text(&a.traj)?).map_err(bad_input(a.traj.display()))?;
-    let assoc = files::associations_from_csv(&read_text(&a.assoc)?)
-        .map_err(bad_input(a.assoc.display()))?;
     let mut report = evaluate(
         &truth_map,
         &map,
@@ -70,6 +78,10 @@ pub fn run_eval(a: EvalArgs) -> Result<(), super::CliError> {
         &truth_assoc,
         &assoc,
     );
+    if a.assoc.is_none() {
+        // JSON writes it as null, the table as not scored.
+        report.association_accuracy = f64::NAN;
+    }
     if truth_traj.is_none() {
         // JSON writes these as null, the table as not scored.
         report.ate = f64::NAN;
@@ -112,6 +124,19 @@ pub fn run_eval(a: EvalArgs) -> Result<(), super::CliError> {
         print!("{}", table(&report));
     }
     Ok(())
+}
+
+/// Refuses a plot file that is neither SVG nor PNG, before any work.
+pub fn check_plot_format(path: &Path) -> Result<(), super::CliError> {
+    let ext = path.extension().and_then(|e| e.to_str()).unwrap_or("");
+    if ext.eq_ignore_ascii_case("svg") || ext.eq_ignore_ascii_case("png") {
+        Ok(())
+    } else {
+        Err(super::CliError::usage(format!(
+            "--plot {}: plots are written as .svg or .png",
+            path.display()
+        )))
+    }
 }
 
 /// Draws a run over its truth.
@@ -170,7 +195,11 @@ pub fn table(r: &Report) -> String {
         ("ATE, aligned (m)".into(), scored(r.ate_aligned)),
         (
             "association accuracy".into(),
-            format!("{:.2}% of {}", 100.0 * r.association_accuracy, r.detections),
+            if r.association_accuracy.is_nan() {
+                "not scored (no --assoc)".into()
+            } else {
+                format!("{:.2}% of {}", 100.0 * r.association_accuracy, r.detections)
+            },
         ),
     ]);
     if let Some([p50, p99, max]) = r.latency_ms {

@@ -114,10 +114,11 @@ pub fn write_output(path: &std::path::Path, bytes: &[u8]) -> Result<(), CliError
     if path.as_os_str() == "-" {
         use std::io::Write;
         let mut out = std::io::stdout().lock();
-        return out
-            .write_all(bytes)
-            .and_then(|_| out.flush())
-            .map_err(|e| CliError::io(format!("stdout: {e}")));
+        return match out.write_all(bytes).and_then(|_| out.flush()) {
+            // The reader has all it wanted (`| head`): not a failure.
+            Err(e) if e.kind() == std::io::ErrorKind::BrokenPipe => Ok(()),
+            result => result.map_err(|e| CliError::io(format!("stdout: {e}"))),
+        };
     }
     cairn::g2o::write_atomically(path, bytes).map_err(|e| CliError::io(e.to_string()))
 }
