@@ -35,7 +35,7 @@ pub struct SimArgs {
     #[arg(long)]
     track: Option<PathBuf>,
     /// Sensor and odometry errors: `standard` or `hard`.
-    #[arg(long, default_value = "standard")]
+    #[arg(long, default_value = "standard", value_parser = ["standard", "hard"])]
     preset: String,
     /// Laps to drive, above 0 and at most 1000 (acceleration runs are driven once).
     #[arg(long, default_value_t = 2.0)]
@@ -100,11 +100,11 @@ pub struct SlamArgs {
     config: Option<PathBuf>,
     /// Data association: ml, scnn, jcbb or tracking (default: the config's,
     /// tracking without one).
-    #[arg(long)]
+    #[arg(long, value_parser = ["ml", "scnn", "jcbb", "tracking"])]
     association: Option<String>,
     /// Motion model: unicycle (speed + yaw rate) or bicycle (speed + steering)
     /// (default: the config's, unicycle without one).
-    #[arg(long)]
+    #[arg(long, value_parser = ["unicycle", "bicycle"])]
     motion: Option<String>,
     /// Wheelbase for the bicycle model (m).
     #[arg(long, default_value_t = 1.55)]
@@ -131,7 +131,7 @@ pub struct SlamArgs {
     /// Assumed detector noise preset (`standard` or `hard`, the simulator's
     /// presets, as configs/standard.toml and configs/hard.toml); the options
     /// below override its parts. Not with `--config`.
-    #[arg(long, conflicts_with = "config")]
+    #[arg(long, conflicts_with = "config", value_parser = ["standard", "hard"])]
     noise: Option<String>,
     /// Assumed range noise σ (m), the part that does not grow with range.
     #[arg(long)]
@@ -150,12 +150,12 @@ pub struct SlamArgs {
     false_positives: Option<f64>,
     /// Estimator: graph (pose graph + per-landmark EKFs), ekf (EKF-SLAM),
     /// fastslam1 or fastslam2.
-    #[arg(long, default_value = "graph")]
+    #[arg(long, default_value = "graph", value_parser = ["graph", "ekf", "fastslam1", "fastslam2"])]
     estimator: String,
     /// Odometry noise model: velocity (speed and yaw-rate σ) or
     /// rot-trans-rot (Thrun's δrot1, δtrans, δrot2 with α₁…α₄) (default: the
     /// config's, velocity without one).
-    #[arg(long)]
+    #[arg(long, value_parser = ["velocity", "rot-trans-rot"])]
     odometry_noise: Option<String>,
     /// α₁,α₂,α₃,α₄ of the rot-trans-rot model.
     #[arg(long, value_delimiter = ',', num_args = 4)]

@@ -88,102 +88,123 @@ pub struct SolveArgs {
     /// Input g2o file (`-` for stdin).
     file: PathBuf,
     /// Write the optimised graph here (`-` for stdout), atomically.
-    #[arg(short, long)]
+    #[arg(help_heading = "Output", short, long)]
     output: Option<PathBuf>,
     /// Maximum number of iterations.
-    #[arg(short = 'i', long, default_value_t = 100)]
+    #[arg(help_heading = "Algorithm", short = 'i', long, default_value_t = 100)]
     iterations: usize,
     /// Algorithm (g2o's default is Gauss-Newton too).
-    #[arg(long, value_enum, default_value = "gn")]
+    #[arg(help_heading = "Algorithm", long, value_enum, default_value = "gn")]
     solver: SolverName,
     /// Levenberg-Marquardt's damping.
-    #[arg(long, value_enum, default_value = "marquardt")]
+    #[arg(
+        help_heading = "Levenberg-Marquardt",
+        long,
+        value_enum,
+        default_value = "marquardt"
+    )]
     damping: DampingName,
     /// Levenberg-Marquardt's τ, which sets the first λ (see --damping).
     /// Default 1e-12 (marquardt), 1e-5 (levenberg, g2o's).
-    #[arg(long)]
+    #[arg(help_heading = "Levenberg-Marquardt", long)]
     tau: Option<f64>,
     /// Levenberg-Marquardt's non-monotonic steps: how many steps in a row
     /// may raise χ² (the estimate written is the lowest-χ² one met). 0 makes
     /// every accepted step lower χ². Default 5 (marquardt), 0 (levenberg, as g2o).
-    #[arg(long)]
+    #[arg(help_heading = "Levenberg-Marquardt", long)]
     nonmonotonic_steps: Option<usize>,
     /// Levenberg-Marquardt's look-ahead: when its first step raises χ², it
     /// follows up to this many Gauss-Newton steps and keeps them if they
     /// settle below the starting χ². 0 rejects that step. Default 10
     /// (marquardt), 0 (levenberg, as g2o).
-    #[arg(long)]
+    #[arg(help_heading = "Levenberg-Marquardt", long)]
     lookahead_steps: Option<usize>,
     /// Levenberg-Marquardt's line search: a step that lowers χ² by less than
     /// a quarter of its model's prediction is shortened to where a parabola
     /// puts χ²'s minimum, if that lowers χ² further. Default true
     /// (marquardt), false (levenberg, as g2o).
-    #[arg(long)]
+    #[arg(help_heading = "Levenberg-Marquardt", long)]
     line_search: Option<bool>,
     /// Starting point.
-    #[arg(long, value_enum, default_value = "auto")]
+    #[arg(help_heading = "Algorithm", long, value_enum, default_value = "auto")]
     init: InitName,
     /// Hold these vertex ids fixed (comma-separated), besides FIX lines.
-    #[arg(long, value_delimiter = ',')]
+    #[arg(help_heading = "Algorithm", long, value_delimiter = ',')]
     fix: Vec<i64>,
     /// Stop when χ² falls by less than this fraction in an iteration.
-    #[arg(long, default_value_t = SolverConfig::default().relative_decrease)]
+    #[arg(help_heading = "Algorithm", long, default_value_t = SolverConfig::default().relative_decrease)]
     relative_decrease: f64,
     /// Gauss-Newton: stop at the first step that raises χ² and keep the
     /// estimate before it (GTSAM's Gauss-Newton stops there too, keeping the
     /// step). Without it GN carries on, as g2o's does.
-    #[arg(long)]
+    #[arg(help_heading = "Algorithm", long)]
     stop_on_increase: bool,
     /// Replace information matrices that are not positive definite by the
     /// nearest positive-definite ones (cubicle.g2o needs this) instead of refusing.
-    #[arg(long)]
+    #[arg(help_heading = "Algorithm", long)]
     repair_information: bool,
     /// Robust kernel on the edges' squared errors: huber, pseudo-huber, cauchy,
     /// geman-mcclure, welsch, fair, tukey, saturated or dcs. (With dcs, use gn or
     /// dogleg: its weights are not the derivative of its cost, which LM's gain
     /// ratio needs.)
-    #[arg(long)]
+    #[arg(help_heading = "Robust kernels", long, ignore_case = true,
+          value_parser = clap::builder::PossibleValuesParser::new(RobustKernel::NAMES))]
     robust_kernel: Option<String>,
     /// Width δ of the robust kernel.
-    #[arg(long, default_value_t = 1.0)]
+    #[arg(help_heading = "Robust kernels", long, default_value_t = 1.0)]
     robust_kernel_width: f64,
     /// Apply the robust kernel only to loop closures: edges between vertices
     /// whose ids are not consecutive (g2o's -nonSequential).
-    #[arg(long)]
+    #[arg(help_heading = "Robust kernels", long)]
     non_sequential: bool,
     /// Cholesky variant.
-    #[arg(long, value_enum, default_value = "auto")]
+    #[arg(
+        help_heading = "Linear solver",
+        long,
+        value_enum,
+        default_value = "auto"
+    )]
     factorization: FactorizationName,
     /// Fill-reducing ordering.
-    #[arg(long, value_enum, default_value = "block-amd")]
+    #[arg(
+        help_heading = "Linear solver",
+        long,
+        value_enum,
+        default_value = "block-amd"
+    )]
     ordering: OrderingName,
     /// Worker threads, 0 to 1024 (0: one per core). Only graphs with
     /// millions of Jacobian-block entries are linearised in parallel;
     /// results are the same for any number.
-    #[arg(long, default_value_t = 0,
+    #[arg(help_heading = "Linear solver", long, default_value_t = 0,
           value_parser = clap::builder::RangedU64ValueParser::<usize>::new().range(0..=1024))]
     threads: usize,
     /// Print the marginal covariances of these vertex ids (comma-separated),
     /// or of every vertex not held fixed with `all`, at the optimum, in each
     /// vertex's tangent coordinates (SE2: x, y, θ).
-    #[arg(long, value_delimiter = ',', value_name = "IDS|all")]
+    #[arg(
+        help_heading = "Output",
+        long,
+        value_delimiter = ',',
+        value_name = "IDS|all"
+    )]
     marginals: Vec<String>,
     /// Append a one-line CSV summary of the run to this file (header if new).
-    #[arg(long)]
+    #[arg(help_heading = "Output", long)]
     summary: Option<PathBuf>,
     /// Write per-iteration statistics as CSV to this file.
-    #[arg(long)]
+    #[arg(help_heading = "Output", long)]
     stats: Option<PathBuf>,
     /// Print the summary as JSON on stdout.
-    #[arg(long)]
+    #[arg(help_heading = "Output", long)]
     json: bool,
     /// No per-iteration output on stderr.
-    #[arg(short, long)]
+    #[arg(help_heading = "Output", short, long)]
     quiet: bool,
     /// Exit with status 5 when the solve does not converge (the iteration
     /// cap, an indefinite Hessian, a non-finite χ²), after writing its
     /// result as without it. Without it such a run exits 0, as g2o's does.
-    #[arg(long)]
+    #[arg(help_heading = "Algorithm", long)]
     strict: bool,
 }
 
