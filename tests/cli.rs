@@ -531,3 +531,24 @@ fn help_lists_the_choices_and_groups_the_options() {
     assert_eq!(o.status.code(), Some(2));
     assert!(stderr(&o).contains("[possible values: standard, hard]"));
 }
+
+/// Shell completions and man pages come from the command-line definitions.
+#[test]
+fn completions_and_man_pages() {
+    for shell in ["bash", "zsh", "fish"] {
+        let o = cairn(&["completions", shell]);
+        assert!(o.status.success(), "{shell}");
+        let script = String::from_utf8_lossy(&o.stdout);
+        assert!(
+            script.contains("fs-slam") && script.contains("robust-kernel"),
+            "{shell}"
+        );
+    }
+    let dir = temp_dir("man");
+    let o = cairn(&["man", "-o", s(&dir)]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let solve = std::fs::read_to_string(dir.join("cairn-solve.1")).unwrap();
+    assert!(solve.starts_with(".ie") || solve.contains(".TH"), "{solve}");
+    assert!(solve.contains("robust\\-kernel"), "{solve}");
+    assert!(dir.join("cairn.1").is_file() && dir.join("cairn-fs-slam.1").is_file());
+}

@@ -11,6 +11,7 @@ mod fs_targets;
 mod generate;
 mod linearize;
 mod progress;
+mod shell;
 mod solve;
 mod solve_output;
 mod study;
@@ -60,6 +61,10 @@ enum Command {
     /// Compare the estimators (graph, EKF-SLAM, FastSLAM 1.0/2.0) on simulated
     /// runs into docs/estimators.md with plots.
     FsStudy(study::StudyArgs),
+    /// Print a shell completion script (bash, zsh, fish, elvish, powershell).
+    Completions(shell::CompletionsArgs),
+    /// Write man pages for cairn and each of its commands.
+    Man(shell::ManArgs),
 }
 
 /// Runs the parsed command.
@@ -77,6 +82,8 @@ pub fn run(cli: Cli) -> Result<(), CliError> {
         Command::FsSmooth(args) => fs_import::run_smooth(args),
         Command::FsReport(args) => fs_report::run(args),
         Command::FsStudy(args) => study::run(args),
+        Command::Completions(args) => shell::completions(args),
+        Command::Man(args) => shell::man(args),
     }
 }
 
