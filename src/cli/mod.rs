@@ -16,6 +16,7 @@ mod solve;
 mod solve_output;
 mod study;
 mod study_sweeps;
+mod trajectory;
 
 use clap::{Parser, Subcommand};
 pub use exit::{CliError, bad_input};

@@ -3,6 +3,7 @@
 use super::solve_output::{
     Times, append_summary, check_outputs, describe_load, report_json, stats_csv, summary_row,
 };
+use super::trajectory::{TrajectoryFormat, trajectory};
 use super::{CliError, bad_input};
 use cairn::core::RobustKernel;
 use cairn::g2o::ReadOptions;
@@ -192,6 +193,13 @@ pub struct SolveArgs {
     /// Append a one-line CSV summary of the run to this file (header if new).
     #[arg(help_heading = "Output", long)]
     summary: Option<PathBuf>,
+    /// Write the solved poses (SE2 and SE3, in id order) as a trajectory
+    /// file, for evo and other trajectory tools.
+    #[arg(help_heading = "Output", long, value_name = "FILE")]
+    traj_out: Option<PathBuf>,
+    /// The trajectory's format: tum (the vertex id as time) or kitti.
+    #[arg(help_heading = "Output", long, value_enum, default_value = "tum")]
+    traj_format: TrajectoryFormat,
     /// Write per-iteration statistics as CSV to this file.
     #[arg(help_heading = "Output", long)]
     stats: Option<PathBuf>,
@@ -258,6 +266,7 @@ fn solve(a: SolveArgs) -> Result<(), CliError> {
         ("-o", a.output.as_ref()),
         ("--stats", a.stats.as_ref()),
         ("--summary", a.summary.as_ref()),
+        ("--traj-out", a.traj_out.as_ref()),
     ])?;
     let t = Instant::now();
     let options = ReadOptions {
@@ -424,6 +433,9 @@ fn solve(a: SolveArgs) -> Result<(), CliError> {
                 )
             }
         );
+    }
+    if let Some(path) = &a.traj_out {
+        super::write_output(path, trajectory(&graph, a.traj_format)?.as_bytes())?;
     }
     if let Some(path) = &a.stats {
         super::write_output(path, stats_csv(&summary).as_bytes())?;
