@@ -25,5 +25,6 @@ pub use cairn_slam as slam;
 pub use cairn_solvers as solvers;
 
 pub mod generate;
+pub mod graph_plot;
 pub mod outliers;
 pub mod plot;

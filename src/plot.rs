@@ -35,10 +35,10 @@ fn rgb(color: ConeColor) -> RGBColor {
 
 /// The plots' text font: Ubuntu Light, compiled in, so that drawing needs no
 /// font from the system (nor fontconfig or freetype to find and render one).
-const FONT: &str = "sans-serif";
+pub(crate) const FONT: &str = "sans-serif";
 
 /// Registers [`FONT`] with plotters, once.
-fn register_font() -> Result<(), String> {
+pub(crate) fn register_font() -> Result<(), String> {
     static REGISTERED: OnceLock<bool> = OnceLock::new();
     let ok = REGISTERED.get_or_init(|| {
         let bytes = epaint_default_fonts::UBUNTU_LIGHT;

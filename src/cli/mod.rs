@@ -10,6 +10,7 @@ mod fs_report;
 mod fs_targets;
 mod generate;
 mod linearize;
+mod plot;
 mod progress;
 mod shell;
 mod solve;
@@ -36,6 +37,9 @@ enum Command {
     /// The linear system of a g2o file (H, b, the whitened Jacobian) as Matrix
     /// Market files, and the Cholesky factor's fill under each ordering.
     Linearize(linearize::LinearizeArgs),
+    /// Draw a g2o graph from above: poses, odometry, loop closures,
+    /// landmarks, and optionally another estimate beneath (SVG or PNG).
+    Plot(plot::PlotArgs),
     /// Report on a g2o file: largest χ² edges, χ² histogram, indefinite or badly
     /// scaled information matrices, connected components.
     Check(check::CheckArgs),
@@ -74,6 +78,7 @@ pub fn run(cli: Cli) -> Result<(), CliError> {
         Command::Solve(args) => solve::run(args),
         Command::Generate(args) => generate::run(args),
         Command::Check(args) => check::run(args),
+        Command::Plot(args) => plot::run(args),
         Command::Linearize(args) => linearize::run(args),
         Command::Corrupt(args) => corrupt::run(args),
         Command::FsSim(args) => fs::run_sim(args),

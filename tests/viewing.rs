@@ -1,4 +1,5 @@
-//! `solve --traj-out`: the written trajectory holds the solved graph's poses.
+//! What users look at: `solve --traj-out` trajectories (checked against the
+//! written graph) and `cairn plot` pictures (read back).
 
 use std::path::{Path, PathBuf};
 use std::process::Command;
@@ -139,4 +140,58 @@ fn se3_poses_and_no_landmarks() {
     let one = dir.join("one.tum");
     cairn(&["solve", "-q", s(&small), "--traj-out", s(&one)]);
     assert_eq!(rows(&one).len(), 1);
+}
+
+/// `cairn plot` draws a graph into SVG or PNG, with the initial estimate
+/// beneath, and refuses other formats before reading anything.
+#[test]
+fn plot_writes_svg_and_png() {
+    let dir = folder("plot");
+    let (graph, solved) = (dir.join("g.g2o"), dir.join("solved.g2o"));
+    cairn(&["generate", "manhattan", "-n", "300", "-o", s(&graph)]);
+    cairn(&["solve", "-q", s(&graph), "-o", s(&solved)]);
+    let (svg, png) = (dir.join("p.svg"), dir.join("p.png"));
+    cairn(&["plot", s(&solved), "--compare", s(&graph), "-o", s(&svg)]);
+    cairn(&["plot", s(&solved), "-o", s(&png), "--title", "manhattan"]);
+    let text = std::fs::read_to_string(&svg).unwrap();
+    assert!(text.starts_with("<svg"), "{}", &text[..100]);
+    let edges = std::fs::read_to_string(&solved)
+        .unwrap()
+        .lines()
+        .filter(|l| l.starts_with("EDGE_SE2 "))
+        .count();
+    let odometry: usize = text
+        .split("odometry (")
+        .nth(1)
+        .unwrap()
+        .split(')')
+        .next()
+        .unwrap()
+        .parse()
+        .unwrap();
+    let loops: usize = text
+        .split("loop closures (")
+        .nth(1)
+        .unwrap()
+        .split(')')
+        .next()
+        .unwrap()
+        .parse()
+        .unwrap();
+    assert_eq!(odometry, 299);
+    assert_eq!(odometry + loops, edges);
+    assert!(
+        text.contains("g.g2o") && text.contains("solved.g2o"),
+        "the legend and the title name the files"
+    );
+    let bytes = std::fs::read(&png).unwrap();
+    assert_eq!(&bytes[..8], b"\x89PNG\r\n\x1a\n");
+    // Width and height from the IHDR chunk.
+    let be = |b: &[u8]| u32::from_be_bytes([b[0], b[1], b[2], b[3]]);
+    assert_eq!((be(&bytes[16..20]), be(&bytes[20..24])), (1000, 900));
+    let o = Command::new(env!("CARGO_BIN_EXE_cairn"))
+        .args(["plot", s(&solved), "-o", s(&dir.join("p.pdf"))])
+        .output()
+        .unwrap();
+    assert_eq!(o.status.code(), Some(2));
 }
