@@ -21,7 +21,14 @@ pub struct MapPlot<'a> {
     pub true_path: &'a [Vector2<f64>],
     /// Estimated trajectory (red line).
     pub path: &'a [Vector2<f64>],
+    /// The estimated trajectory's position error over time, (s, m): drawn
+    /// in a panel below the map when given.
+    pub errors: &'a [(f64, f64)],
 }
+
+/// How much the map's error arrows (mapped cone → its true cone) are
+/// lengthened: centimetres would not show at a track's scale.
+const ARROW_SCALE: f64 = 20.0;
 
 fn rgb(color: ConeColor) -> RGBColor {
     match color {
@@ -74,6 +81,13 @@ where
     DB::ErrorType: 'static,
 {
     area.fill(&WHITE)?;
+    let area = if plot.errors.is_empty() {
+        area
+    } else {
+        let (top, bottom) = area.split_vertically(area.dim_in_pixel().1 * 3 / 4);
+        draw_errors(plot.errors, &bottom)?;
+        top
+    };
     let points = plot
         .truth
         .iter()
@@ -111,6 +125,7 @@ where
         .build_cartesian_2d(xr, yr)?;
     chart
         .configure_mesh()
+        .light_line_style(WHITE)
         .x_desc("x (m)")
         .y_desc("y (m)")
         .draw()?;
@@ -145,6 +160,57 @@ where
             .label("true cone")
             .legend(move |(x, y)| Circle::new((x + 10, y), 5, grey.stroke_width(1)));
     }
+    // 1σ ellipses of the mapped cones' covariances, and each mapped cone's
+    // error to the nearest true cone (within a metre), both ×ARROW_SCALE.
+    let ellipse = RGBColor(120, 120, 120).mix(0.6);
+    let ellipses: Vec<_> = plot
+        .map
+        .iter()
+        .filter_map(|c| {
+            let points = ellipse_points(&c.covariance, ARROW_SCALE)?;
+            let around = points
+                .iter()
+                .map(|p| (c.position.x + p.x, c.position.y + p.y));
+            Some(PathElement::new(
+                around.collect::<Vec<_>>(),
+                ellipse.stroke_width(1),
+            ))
+        })
+        .collect();
+    if !ellipses.is_empty() {
+        chart
+            .draw_series(ellipses)?
+            .label(format!("1σ of a mapped cone, ×{ARROW_SCALE}"))
+            .legend(move |(x, y)| Circle::new((x + 10, y), 5, ellipse.stroke_width(1)));
+    }
+    let arrows: Vec<_> =
+        plot.map
+            .iter()
+            .filter_map(|c| {
+                let nearest =
+                    plot.truth.iter().map(|t| t.position).min_by(|a, b| {
+                        (a - c.position).norm().total_cmp(&(b - c.position).norm())
+                    })?;
+                let error = c.position - nearest;
+                (error.norm() <= 1.0).then_some([
+                    (nearest.x, nearest.y),
+                    (
+                        nearest.x + ARROW_SCALE * error.x,
+                        nearest.y + ARROW_SCALE * error.y,
+                    ),
+                ])
+            })
+            .collect();
+    if !arrows.is_empty() {
+        chart
+            .draw_series(
+                arrows
+                    .iter()
+                    .map(|&[p, q]| PathElement::new(vec![p, q], BLACK.stroke_width(1))),
+            )?
+            .label(format!("map error, ×{ARROW_SCALE}"))
+            .legend(|(x, y)| PathElement::new([(x, y), (x + 20, y)], BLACK));
+    }
     let map = chart.draw_series(
         plot.map
             .iter()
@@ -161,6 +227,46 @@ where
         .border_style(BLACK)
         .draw()?;
     area.present()?;
+    Ok(())
+}
+
+/// Points of the ellipse xᵀΣ⁻¹x = k², `None` for a covariance that is not
+/// positive definite (or zero, as a map without variances).
+fn ellipse_points(sigma: &nalgebra::Matrix2<f64>, k: f64) -> Option<Vec<Vector2<f64>>> {
+    let l = sigma.cholesky()?.l();
+    Some(
+        (0..=36)
+            .map(|i| {
+                let a = f64::from(i) * std::f64::consts::TAU / 36.0;
+                l * Vector2::new(a.cos(), a.sin()) * k
+            })
+            .collect(),
+    )
+}
+
+/// The trajectory's position error over time, in a panel of its own.
+fn draw_errors<DB: DrawingBackend>(
+    errors: &[(f64, f64)],
+    area: &DrawingArea<DB, Shift>,
+) -> Result<(), Box<dyn std::error::Error>>
+where
+    DB::ErrorType: 'static,
+{
+    let t_end = errors.iter().map(|e| e.0).fold(f64::MIN, f64::max);
+    let t_start = errors.iter().map(|e| e.0).fold(f64::MAX, f64::min);
+    let top = errors.iter().map(|e| e.1).fold(0.0, f64::max).max(1e-3) * 1.1;
+    let mut chart = ChartBuilder::on(area)
+        .margin(10)
+        .x_label_area_size(35)
+        .y_label_area_size(45)
+        .build_cartesian_2d(t_start..t_end.max(t_start + 1e-3), 0.0..top)?;
+    chart
+        .configure_mesh()
+        .light_line_style(WHITE)
+        .x_desc("time (s)")
+        .y_desc("position error (m)")
+        .draw()?;
+    chart.draw_series(LineSeries::new(errors.iter().copied(), RED.stroke_width(1)))?;
     Ok(())
 }
 
@@ -273,6 +379,7 @@ mod tests {
             map: &cones,
             true_path: &path,
             path: &path,
+            errors: &[(0.0, 0.1), (1.0, 0.2)],
         };
         let series = [("errors".to_string(), vec![(0.0, 1.0), (1.0, 0.5)])];
         let lines = LinePlot {

@@ -442,6 +442,18 @@ fn fs_eval_without_associations_and_with_a_plot_it_cannot_write() {
     let json: serde_json::Value = serde_json::from_slice(&o.stdout).unwrap();
     assert!(json["association_accuracy"].is_null());
     assert!(json["map_rmse"].as_f64().is_some_and(|e| e < 0.5));
+    let svg = dir.join("plot.svg");
+    let o = eval(&["--plot", s(&svg)]);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let drawn = std::fs::read_to_string(&svg).unwrap();
+    for part in [
+        "m.csv against",
+        "map error, ×20",
+        "1σ of a mapped cone",
+        "position error (m)",
+    ] {
+        assert!(drawn.contains(part), "{part} is not in the plot");
+    }
     let pdf = dir.join("plot.pdf");
     let o = eval(&["--plot", s(&pdf)]);
     assert_eq!(o.status.code(), Some(2));

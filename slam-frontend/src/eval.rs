@@ -204,6 +204,15 @@ pub fn association_accuracy(truth: &[Association], estimate: &[Association]) -> 
 }
 
 /// The true position at time `t`, linearly interpolated.
+/// The estimate's position error (m) at each of its times within the
+/// truth's, against the truth interpolated there: (time, error).
+pub fn position_errors(truth: &[StampedPose], estimate: &[StampedPose]) -> Vec<(f64, f64)> {
+    estimate
+        .iter()
+        .filter_map(|p| interpolate(truth, p.t).map(|q| (p.t, (p.pose.t - q).norm())))
+        .collect()
+}
+
 fn interpolate(truth: &[StampedPose], t: f64) -> Option<Vector2<f64>> {
     let i = truth.partition_point(|p| p.t < t);
     if i == truth.len() {

@@ -4,7 +4,7 @@ use super::bad_input;
 use super::fs::{TRUTH_ASSOC, TRUTH_MAP, TRUTH_TRAJ, read_text};
 use cairn::plot::{MapPlot, draw};
 use cairn::slam::Cone;
-use cairn::slam::eval::{Report, evaluate, latency_ms};
+use cairn::slam::eval::{Report, evaluate, latency_ms, position_errors};
 use cairn::slam::files::{self, StampedPose};
 use cairn::slam::track::map_from_csv;
 use clap::Args;
@@ -37,7 +37,7 @@ pub struct EvalArgs {
     /// Draw the map over the truth and both trajectories: FILE.svg or FILE.png.
     #[arg(long)]
     plot: Option<PathBuf>,
-    /// The plot's title (default: the map's path).
+    /// The plot's title (default: the map's file name and the truth's folder).
     #[arg(long)]
     title: Option<String>,
 }
@@ -106,9 +106,7 @@ pub fn run_eval(a: EvalArgs) -> Result<(), super::CliError> {
     if let Some(path) = &a.plot {
         plot_run(
             path,
-            &a.title
-                .clone()
-                .unwrap_or_else(|| a.map.display().to_string()),
+            &a.title.clone().unwrap_or_else(|| default_title(&a)),
             &truth_map,
             &map,
             truth_traj.as_deref().unwrap_or_default(),
@@ -124,6 +122,17 @@ pub fn run_eval(a: EvalArgs) -> Result<(), super::CliError> {
         print!("{}", table(&report));
     }
     Ok(())
+}
+
+/// `MAP.csv against TRUTH`: the names of the map file and the truth's folder.
+fn default_title(a: &EvalArgs) -> String {
+    let name = |p: &Path| {
+        p.file_name().map_or_else(
+            || p.display().to_string(),
+            |n| n.to_string_lossy().into_owned(),
+        )
+    };
+    format!("{} against {}", name(&a.map), name(&a.truth))
 }
 
 /// Refuses a plot file that is neither SVG nor PNG, before any work.
@@ -157,6 +166,7 @@ pub fn plot_run(
             map,
             true_path: &true_path,
             path: &est_path,
+            errors: &position_errors(truth_traj, traj),
         },
         path,
     )
