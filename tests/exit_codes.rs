@@ -68,6 +68,8 @@ fn each_failure_has_its_own_status() {
     assert_eq!(status(&["fs-slam", s(&missing)]), 4);
     let nowhere = dir.join("no-folder").join("out.g2o");
     assert_eq!(status(&["solve", "-q", g, "-o", s(&nowhere)]), 4);
+    // Before the log is even read.
+    assert_eq!(status(&["fs-slam", g, "--map-out", s(&nowhere)]), 4);
     // The iteration cap: written and 0, or written and 5 under --strict.
     let _ = std::fs::remove_file(&out);
     assert_eq!(status(&["solve", "-q", g, "-i", "1", "-o", o]), 0);

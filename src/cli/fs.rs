@@ -79,6 +79,16 @@ pub struct EstimateOutputs {
     pub assoc_out: Option<PathBuf>,
 }
 
+impl EstimateOutputs {
+    /// Fails, before the run, when an output's folder does not exist.
+    pub fn check(&self) -> Result<(), CliError> {
+        [&self.map_out, &self.traj_out, &self.assoc_out]
+            .into_iter()
+            .flatten()
+            .try_for_each(|path| super::check_writable(path))
+    }
+}
+
 /// Options of `cairn fs-slam`.
 #[derive(Debug, Args)]
 pub struct SlamArgs {
@@ -305,6 +315,10 @@ pub fn run_sim(a: SimArgs) -> Result<(), super::CliError> {
 pub fn run_slam(a: SlamArgs) -> Result<(), super::CliError> {
     let name = a.log.display().to_string();
     // The options first: a wrong one fails before the log is read.
+    a.out.check()?;
+    if let Some(path) = &a.timing_out {
+        super::check_writable(path)?;
+    }
     let kind = EstimatorKind::by_name(&a.estimator)
         .ok_or_else(|| CliError::usage("--estimator must be graph, ekf, fastslam1 or fastslam2"))?;
     let config = slam_config(&a, kind)?;

@@ -114,6 +114,7 @@ pub struct SmoothArgs {
 }
 
 pub fn run_smooth(a: SmoothArgs) -> Result<(), super::CliError> {
+    a.out.check()?;
     let name = a.log.display().to_string();
     let log = Log::parse_bytes(&super::read_input(&a.log)?, false, &Default::default())
         .map_err(bad_input(&name))?;
