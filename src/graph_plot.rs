@@ -3,7 +3,7 @@
 //! estimate of the same graph (the initial one, say) beneath it. SVG or PNG
 //! by the file's extension.
 
-use crate::plot::{FONT, register_font};
+use crate::plot::{Drawing, FONT, finish, render};
 use cairn_core::Graph;
 use plotters::coord::Shift;
 use plotters::prelude::*;
@@ -73,27 +73,34 @@ pub fn draw_graph(
     beneath: Option<(&GraphPicture, &str)>,
     path: &Path,
 ) -> Result<(), String> {
-    register_font()?;
-    let size = (1000, 900);
-    let is_png = path
-        .extension()
-        .is_some_and(|e| e.eq_ignore_ascii_case("png"));
-    let result = if is_png {
-        draw_on(
+    render(
+        &GraphDrawing {
             title,
             main,
             beneath,
-            BitMapBackend::new(path, size).into_drawing_area(),
-        )
-    } else {
-        draw_on(
-            title,
-            main,
-            beneath,
-            SVGBackend::new(path, size).into_drawing_area(),
-        )
-    };
-    result.map_err(|e| format!("{}: {e}", path.display()))
+        },
+        path,
+    )
+}
+
+struct GraphDrawing<'a> {
+    title: &'a str,
+    main: &'a GraphPicture,
+    beneath: Option<(&'a GraphPicture, &'a str)>,
+}
+
+impl Drawing for GraphDrawing<'_> {
+    const SIZE: (u32, u32) = (1000, 900);
+
+    fn draw_on<DB: DrawingBackend>(
+        &self,
+        area: DrawingArea<DB, Shift>,
+    ) -> Result<(), Box<dyn std::error::Error>>
+    where
+        DB::ErrorType: 'static,
+    {
+        draw_on(self.title, self.main, self.beneath, area)
+    }
 }
 
 /// The square around every point of the pictures, with a margin.
@@ -184,14 +191,7 @@ where
             .label(format!("landmarks ({})", main.landmarks.len()))
             .legend(move |(x, y)| Circle::new((x + 10, y), 3, green.filled()));
     }
-    chart
-        .configure_series_labels()
-        .position(SeriesLabelPosition::UpperLeft)
-        .background_style(WHITE.mix(0.8))
-        .border_style(BLACK)
-        .draw()?;
-    area.present()?;
-    Ok(())
+    finish(&mut chart, SeriesLabelPosition::UpperLeft)
 }
 
 #[cfg(test)]

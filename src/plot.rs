@@ -4,6 +4,7 @@
 use cairn_slam::{Color as ConeColor, Cone};
 use nalgebra::Vector2;
 use plotters::coord::Shift;
+use plotters::coord::types::RangedCoordf64;
 use plotters::prelude::*;
 use std::path::Path;
 use std::sync::OnceLock;
@@ -45,7 +46,7 @@ fn rgb(color: ConeColor) -> RGBColor {
 pub(crate) const FONT: &str = "sans-serif";
 
 /// Registers [`FONT`] with plotters, once.
-pub(crate) fn register_font() -> Result<(), String> {
+fn register_font() -> Result<(), String> {
     static REGISTERED: OnceLock<bool> = OnceLock::new();
     let ok = REGISTERED.get_or_init(|| {
         let bytes = epaint_default_fonts::UBUNTU_LIGHT;
@@ -58,22 +59,71 @@ pub(crate) fn register_font() -> Result<(), String> {
     }
 }
 
-/// Writes the plot to `path` (`.png` for a bitmap, otherwise SVG).
-pub fn draw(plot: &MapPlot, path: &Path) -> Result<(), String> {
+/// A picture that draws itself on any plotters backend.
+pub(crate) trait Drawing {
+    /// Its size in pixels.
+    const SIZE: (u32, u32);
+    /// Draws it on `area`.
+    fn draw_on<DB: DrawingBackend>(
+        &self,
+        area: DrawingArea<DB, Shift>,
+    ) -> Result<(), Box<dyn std::error::Error>>
+    where
+        DB::ErrorType: 'static;
+}
+
+/// Writes `drawing` to `path`: `.png` for a bitmap, otherwise SVG.
+pub(crate) fn render<D: Drawing>(drawing: &D, path: &Path) -> Result<(), String> {
     register_font()?;
-    let size = (1000, 800);
     let is_png = path
         .extension()
         .is_some_and(|e| e.eq_ignore_ascii_case("png"));
     let result = if is_png {
-        draw_on(plot, BitMapBackend::new(path, size).into_drawing_area())
+        drawing.draw_on(BitMapBackend::new(path, D::SIZE).into_drawing_area())
     } else {
-        draw_on(plot, SVGBackend::new(path, size).into_drawing_area())
+        drawing.draw_on(SVGBackend::new(path, D::SIZE).into_drawing_area())
     };
     result.map_err(|e| format!("{}: {e}", path.display()))
 }
 
-fn draw_on<DB: DrawingBackend>(
+/// Draws the chart's legend at `position` and finishes the picture.
+pub(crate) fn finish<'a, DB: DrawingBackend + 'a>(
+    chart: &mut ChartContext<'a, DB, Cartesian2d<RangedCoordf64, RangedCoordf64>>,
+    position: SeriesLabelPosition,
+) -> Result<(), Box<dyn std::error::Error>>
+where
+    DB::ErrorType: 'static,
+{
+    chart
+        .configure_series_labels()
+        .position(position)
+        .background_style(WHITE.mix(0.8))
+        .border_style(BLACK)
+        .draw()?;
+    chart.plotting_area().present()?;
+    Ok(())
+}
+
+/// Writes the plot to `path` (`.png` for a bitmap, otherwise SVG).
+pub fn draw(plot: &MapPlot, path: &Path) -> Result<(), String> {
+    render(plot, path)
+}
+
+impl Drawing for MapPlot<'_> {
+    const SIZE: (u32, u32) = (1000, 800);
+
+    fn draw_on<DB: DrawingBackend>(
+        &self,
+        area: DrawingArea<DB, Shift>,
+    ) -> Result<(), Box<dyn std::error::Error>>
+    where
+        DB::ErrorType: 'static,
+    {
+        draw_map(self, area)
+    }
+}
+
+fn draw_map<DB: DrawingBackend>(
     plot: &MapPlot,
     area: DrawingArea<DB, Shift>,
 ) -> Result<(), Box<dyn std::error::Error>>
@@ -220,14 +270,7 @@ where
         map.label("mapped cone")
             .legend(move |(x, y)| Circle::new((x + 10, y), 2, grey.filled()));
     }
-    chart
-        .configure_series_labels()
-        .position(SeriesLabelPosition::UpperLeft)
-        .background_style(WHITE.mix(0.8))
-        .border_style(BLACK)
-        .draw()?;
-    area.present()?;
-    Ok(())
+    finish(&mut chart, SeriesLabelPosition::UpperLeft)
 }
 
 /// Points of the ellipse xᵀΣ⁻¹x = k², `None` for a covariance that is not
@@ -284,17 +327,21 @@ pub struct LinePlot<'a> {
 
 /// Writes a line plot to `path` (`.png` for a bitmap, otherwise SVG).
 pub fn draw_lines(plot: &LinePlot, path: &Path) -> Result<(), String> {
-    register_font()?;
-    let size = (900, 560);
-    let is_png = path
-        .extension()
-        .is_some_and(|e| e.eq_ignore_ascii_case("png"));
-    let result = if is_png {
-        lines_on(plot, BitMapBackend::new(path, size).into_drawing_area())
-    } else {
-        lines_on(plot, SVGBackend::new(path, size).into_drawing_area())
-    };
-    result.map_err(|e| format!("{}: {e}", path.display()))
+    render(plot, path)
+}
+
+impl Drawing for LinePlot<'_> {
+    const SIZE: (u32, u32) = (900, 560);
+
+    fn draw_on<DB: DrawingBackend>(
+        &self,
+        area: DrawingArea<DB, Shift>,
+    ) -> Result<(), Box<dyn std::error::Error>>
+    where
+        DB::ErrorType: 'static,
+    {
+        lines_on(self, area)
+    }
 }
 
 fn lines_on<DB: DrawingBackend>(
@@ -346,14 +393,7 @@ where
                 .map(|&(x, y)| Circle::new((x, y), 3, color.filled())),
         )?;
     }
-    chart
-        .configure_series_labels()
-        .position(SeriesLabelPosition::UpperRight)
-        .background_style(WHITE.mix(0.8))
-        .border_style(BLACK)
-        .draw()?;
-    area.present()?;
-    Ok(())
+    finish(&mut chart, SeriesLabelPosition::UpperRight)
 }
 
 #[cfg(test)]
