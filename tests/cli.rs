@@ -552,3 +552,22 @@ fn completions_and_man_pages() {
     assert!(solve.contains("robust\\-kernel"), "{solve}");
     assert!(dir.join("cairn.1").is_file() && dir.join("cairn-fs-slam.1").is_file());
 }
+
+/// Marginals are results: printed on stdout even with -q; a run without -o
+/// reports no write time.
+#[test]
+fn marginals_print_with_quiet_and_no_write_time_without_output() {
+    let dir = temp_dir("marginals-quiet");
+    let graph = dir.join("g.g2o");
+    std::fs::write(
+        &graph,
+        "VERTEX_SE2 0 0 0 0\nVERTEX_SE2 1 1.1 0 0\nEDGE_SE2 0 1 1 0 0 1 0 0 1 0 1\n",
+    )
+    .unwrap();
+    let o = cairn(&["solve", "-q", s(&graph), "--marginals", "1"]);
+    assert!(o.status.success());
+    let out = String::from_utf8_lossy(&o.stdout);
+    assert!(out.contains("marginal covariance of vertex 1"), "{out}");
+    let o = cairn(&["solve", s(&graph)]);
+    assert!(!stderr(&o).contains("write"), "{}", stderr(&o));
+}

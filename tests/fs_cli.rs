@@ -157,6 +157,13 @@ fn every_estimator_and_point_clouds_run_from_the_command_line() {
     for extra in [
         vec!["--estimator", "ekf"],
         vec!["--estimator", "ekf", "--odometry-noise", "rot-trans-rot"],
+        // The README's values, comma-separated.
+        vec![
+            "--odometry-noise",
+            "rot-trans-rot",
+            "--alpha",
+            "1e-3,1.6e-5,2.5e-3,1e-4",
+        ],
         vec!["--estimator", "fastslam2", "--particles", "20"],
         vec![
             "--estimator",
@@ -176,6 +183,7 @@ fn every_estimator_and_point_clouds_run_from_the_command_line() {
         vec!["--estimator", "kalman"],
         vec!["--estimator", "graph", "--known-assoc", s(&truth)],
         vec!["--odometry-noise", "velocity", "--alpha", "1,1,1,1"],
+        vec!["--odometry-noise", "rot-trans-rot", "--alpha", "1,1"],
         vec!["--particles", "0"],
     ] {
         let mut args = vec!["fs-slam", s(&log)];

@@ -167,8 +167,8 @@ pub struct SlamArgs {
     /// config's, velocity without one).
     #[arg(long, value_parser = ["velocity", "rot-trans-rot"])]
     odometry_noise: Option<String>,
-    /// α₁,α₂,α₃,α₄ of the rot-trans-rot model.
-    #[arg(long, value_delimiter = ',', num_args = 4)]
+    /// α₁,α₂,α₃,α₄ of the rot-trans-rot model, comma-separated.
+    #[arg(long, value_delimiter = ',', value_name = "A1,A2,A3,A4")]
     alpha: Option<Vec<f64>>,
     /// FastSLAM particles, 1 to 100,000.
     #[arg(long, default_value_t = 100, value_parser = clap::builder::RangedU64ValueParser::<usize>::new().range(1..=100000))]

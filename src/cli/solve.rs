@@ -405,16 +405,21 @@ fn solve(a: SolveArgs) -> Result<(), CliError> {
         Some(out) => format!("{e} (the solved graph was written to {})", out.display()),
         None => e,
     })?;
-    if !a.quiet {
-        for (id, m) in marginal_ids.iter().zip(&marginals) {
+    // Asked-for results: printed even with -q, on stdout unless the graph
+    // or the JSON (which holds them) goes there.
+    let stdout_taken = a.json || a.output.as_ref().is_some_and(|o| o.as_os_str() == "-");
+    for (id, m) in marginal_ids.iter().zip(&marginals) {
+        if stdout_taken {
             eprint!("marginal covariance of vertex {id}:{m}");
+        } else {
+            print!("marginal covariance of vertex {id}:{m}");
         }
     }
     let times = Times { load, solve, write };
 
     if !a.quiet {
         eprintln!(
-            "{} from {} start: {:?} after {} iterations: χ² {:.6} → {:.6}; load {:.3}s, solve {:.3}s, write {:.3}s{}",
+            "{} from {} start: {:?} after {} iterations: χ² {:.6} → {:.6}; load {:.3}s, solve {:.3}s{}{}",
             summary.algorithm.short_name(),
             start_name(used),
             summary.termination,
@@ -423,7 +428,11 @@ fn solve(a: SolveArgs) -> Result<(), CliError> {
             summary.final_chi2,
             load,
             solve,
-            write,
+            if a.output.is_some() {
+                format!(", write {write:.3}s")
+            } else {
+                String::new()
+            },
             if summary.gauge.is_empty() {
                 String::new()
             } else {

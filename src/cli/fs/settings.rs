@@ -67,8 +67,14 @@ pub(super) fn slam_config(a: &SlamArgs, kind: EstimatorKind) -> Result<FrontEndC
         ));
     }
     let alpha = match &a.alpha {
-        Some(v) if v.iter().all(|x| x.is_finite() && *x >= 0.0) => Some([v[0], v[1], v[2], v[3]]),
-        Some(_) => return Err(CliError::usage("--alpha values must be finite and ≥ 0")),
+        Some(v) if v.len() == 4 && v.iter().all(|x| x.is_finite() && *x >= 0.0) => {
+            Some([v[0], v[1], v[2], v[3]])
+        }
+        Some(_) => {
+            return Err(CliError::usage(
+                "--alpha takes four values A1,A2,A3,A4, finite and ≥ 0",
+            ));
+        }
         None => None,
     };
     let rot_trans_rot =
