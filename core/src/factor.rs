@@ -91,6 +91,8 @@ impl Sink for HessianSink<'_> {
 pub trait FactorGroup: Send + Sync + 'static {
     /// The edge type's name (g2o tag style).
     fn name(&self) -> &'static str;
+    /// A copy of the group, for [`Graph`](crate::Graph)'s `Clone`.
+    fn boxed_clone(&self) -> Box<dyn FactorGroup>;
     /// `TypeId` of the edge type.
     fn edge_type(&self) -> TypeId;
     /// Number of edges.
@@ -143,6 +145,7 @@ pub trait FactorGroup: Send + Sync + 'static {
 /// An edge and its information. Its vertices are kept apart, in one array
 /// per group, so that the passes over the graph's structure read 16 bytes
 /// per edge instead of the whole entry.
+#[derive(Clone)]
 struct Entry<T, const E: usize> {
     edge: T,
     /// Ω as computed with: subnormal entries flushed to zero.
@@ -190,6 +193,7 @@ impl<T, const E: usize> Entry<T, E> {
 }
 
 /// All edges of one unary type.
+#[derive(Clone)]
 pub struct UnaryGroup<T, const E: usize, const D: usize> {
     entries: Vec<Entry<T, E>>,
     vertices: Vec<[usize; 1]>,
@@ -238,6 +242,9 @@ impl<T: UnaryEdge<E, D>, const E: usize, const D: usize> Default for UnaryGroup<
 impl<T: UnaryEdge<E, D>, const E: usize, const D: usize> FactorGroup for UnaryGroup<T, E, D> {
     fn name(&self) -> &'static str {
         T::NAME
+    }
+    fn boxed_clone(&self) -> Box<dyn FactorGroup> {
+        Box::new(self.clone())
     }
     fn edge_type(&self) -> TypeId {
         TypeId::of::<T>()
@@ -316,6 +323,7 @@ impl<T: UnaryEdge<E, D>, const E: usize, const D: usize> FactorGroup for UnaryGr
 }
 
 /// All edges of one binary type.
+#[derive(Clone)]
 pub struct BinaryGroup<T, const E: usize, const D1: usize, const D2: usize> {
     entries: Vec<Entry<T, E>>,
     vertices: Vec<[usize; 2]>,
@@ -387,6 +395,9 @@ impl<T: BinaryEdge<E, D1, D2>, const E: usize, const D1: usize, const D2: usize>
 {
     fn name(&self) -> &'static str {
         T::NAME
+    }
+    fn boxed_clone(&self) -> Box<dyn FactorGroup> {
+        Box::new(self.clone())
     }
     fn edge_type(&self) -> TypeId {
         TypeId::of::<T>()

@@ -194,6 +194,22 @@ pub struct Graph {
     edge_order: Vec<(u32, u32)>,
 }
 
+/// A copy with its own values, vertices and edges: solving one leaves the
+/// other as it was.
+impl Clone for Graph {
+    fn clone(&self) -> Self {
+        Self {
+            values: self.values.clone(),
+            vertices: self.vertices.clone(),
+            kinds: self.kinds.clone(),
+            index: self.index.clone(),
+            groups: self.groups.iter().map(|g| g.boxed_clone()).collect(),
+            group_types: self.group_types.clone(),
+            edge_order: self.edge_order.clone(),
+        }
+    }
+}
+
 impl Graph {
     /// An empty graph.
     pub fn new() -> Self {

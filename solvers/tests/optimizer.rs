@@ -578,3 +578,27 @@ fn chordal_initialisation_recovers_noise_free_graphs_exactly() {
         assert!(g.chi2() < 1e-16, "χ² {}", g.chi2());
     }
 }
+
+#[test]
+fn a_cloned_graph_solves_apart_from_its_original() {
+    let g = noisy_loop(25, 11);
+    let start = g.values().params().to_vec();
+    let mut copy = g.clone();
+    assert_eq!(
+        (copy.num_vertices(), copy.num_edges()),
+        (g.num_vertices(), g.num_edges())
+    );
+    assert_eq!(copy.chi2(), g.chi2());
+    copy.set_robust_kernel(0, Some(cairn_core::RobustKernel::Huber(1.0)));
+    assert!(
+        g.edge(0).kernel().is_none(),
+        "the kernel went to the copy only"
+    );
+    copy.set_robust_kernel(0, None);
+    let solved = optimize(&mut copy, config(Algorithm::GaussNewton)).unwrap();
+    assert_eq!(g.values().params(), &start[..], "the original is untouched");
+    let mut original = g.clone();
+    let again = optimize(&mut original, config(Algorithm::GaussNewton)).unwrap();
+    assert_eq!(again.final_chi2, solved.final_chi2);
+    assert_eq!(original.values().params(), copy.values().params());
+}
