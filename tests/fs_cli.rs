@@ -341,13 +341,16 @@ fn the_report_runs_the_seeds_it_is_given() {
     };
     let (first, later) = (report("0"), report("3"));
     let head = |r: &str| r[..300].to_string();
+    let named = format!(" -o {}`", out.display());
     assert!(
-        first.contains("fs-report --seeds 2 --random 1`"),
+        first.contains(&format!("fs-report --seeds 2 --random 1{named}")),
         "{}",
         head(&first)
     );
     assert!(
-        later.contains("fs-report --seeds 2 --random 1 --first-seed 3`"),
+        later.contains(&format!(
+            "fs-report --seeds 2 --random 1 --first-seed 3{named}"
+        )),
         "{}",
         head(&later)
     );
