@@ -34,6 +34,22 @@ impl Algorithm {
     }
 }
 
+/// How the optimiser removes the gauge freedom (the rigid motion that
+/// changes no error) of the graph's connected components.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize, Deserialize)]
+pub enum Gauge {
+    /// Hold each component's lowest-id pose fixed, unless a fixed vertex or
+    /// a full-rank prior already anchors the component.
+    #[default]
+    Auto,
+    /// Hold only the graph's fixed vertices: for graphs whose priors fix
+    /// the gauge together though none does alone (two position-only GPS
+    /// priors, say). Where they do not, H is singular: Gauss-Newton and
+    /// dogleg end with [`Termination::NotPositiveDefinite`]. To hold other
+    /// vertices, fix them in the graph (`Graph::set_fixed`).
+    None,
+}
+
 /// How Levenberg-Marquardt damps the Hessian and picks its first λ.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize, Deserialize)]
 pub enum Damping {
@@ -211,6 +227,9 @@ pub struct SolverConfig {
     /// Stop when the largest step component is below this × (1 + largest
     /// parameter). Default 1e-12.
     pub step_tolerance: f64,
+    /// How the gauge is fixed. Default [`Gauge::Auto`].
+    #[serde(default)]
+    pub gauge: Gauge,
     /// Levenberg-Marquardt options.
     pub lm: LevenbergMarquardtConfig,
     /// Dogleg options.
@@ -240,6 +259,7 @@ impl Default for SolverConfig {
             stop_on_increase: false,
             gradient_tolerance: 1e-10,
             step_tolerance: 1e-12,
+            gauge: Gauge::Auto,
             lm: LevenbergMarquardtConfig::default(),
             dogleg: DoglegConfig::default(),
             linear: LinearSolverConfig::default(),

@@ -43,7 +43,7 @@ mod test_matrices;
 
 pub use chordal::{ChordalReport, ChordalWeights, chordal_initialize, chordal_initialize_with};
 pub use config::{
-    Algorithm, Damping, DoglegConfig, IterationStats, LevenbergMarquardtConfig, PhaseTimes,
+    Algorithm, Damping, DoglegConfig, Gauge, IterationStats, LevenbergMarquardtConfig, PhaseTimes,
     SolverConfig, Summary, Termination,
 };
 pub use hessian_layout::HessianLayout;

@@ -2,7 +2,9 @@
 
 use crate::SolveError;
 use crate::assembly::Assembly;
-use crate::config::{Algorithm, IterationStats, PhaseTimes, SolverConfig, Summary, Termination};
+use crate::config::{
+    Algorithm, Gauge, IterationStats, PhaseTimes, SolverConfig, Summary, Termination,
+};
 use crate::linear::SparseCholesky;
 use crate::structure::HessianStructure;
 use cairn_core::{Graph, VertexId};
@@ -95,12 +97,15 @@ pub struct Optimizer {
 
 impl Optimizer {
     /// Builds the structure for `graph`: its FIX vertices are held constant, and
-    /// each connected component without a fixed vertex or full prior gets its
-    /// lowest-id pose fixed too.
+    /// (with [`Gauge::Auto`], the default) each connected component without a
+    /// fixed vertex or full prior gets its lowest-id pose fixed too.
     pub fn new(graph: &Graph, config: SolverConfig) -> Result<Self, SolveError> {
         let start = Instant::now();
         let components = graph.components();
-        let gauge_vertices = graph.gauge_vertices_of(&components);
+        let gauge_vertices = match config.gauge {
+            Gauge::Auto => graph.gauge_vertices_of(&components),
+            Gauge::None => Vec::new(),
+        };
         let mut fixed: Vec<bool> = (0..graph.num_vertices())
             .map(|v| graph.is_fixed(v))
             .collect();
