@@ -11,6 +11,7 @@ use cairn_core::{Graph, VertexId};
 use std::time::Instant;
 
 mod dogleg;
+mod gauss_newton;
 mod levenberg_marquardt;
 
 /// Seconds since `t`.
@@ -435,96 +436,6 @@ impl Optimizer {
     fn step_is_small(&self, graph: &Graph) -> bool {
         let scale = 1.0 + max_abs(graph.values().params());
         max_abs(&self.step) <= self.config.step_tolerance * scale
-    }
-
-    fn gauss_newton(
-        &mut self,
-        graph: &mut Graph,
-        summary: &mut Summary,
-        start: Instant,
-        on_iteration: &mut dyn FnMut(&IterationStats),
-    ) -> Termination {
-        let mut chi2 = summary.initial_chi2;
-        // The lowest-χ² estimate, saved when a step first leaves it (where
-        // χ² is the objective).
-        let keep_lowest = graph.chi2_is_objective();
-        let (mut lowest, mut lowest_chi2) = (Vec::new(), chi2);
-        let termination = 'run: {
-            for iteration in 0..self.config.max_iterations {
-                let began = Instant::now();
-                let mut phases = PhaseTimes::default();
-                let gradient_max = max_abs(&self.gradient);
-                if self.gradient_is_small(chi2) {
-                    break 'run Termination::GradientNorm;
-                }
-                if !self.compute_step(0.0, &mut phases) {
-                    break 'run Termination::NotPositiveDefinite;
-                }
-                let t = Instant::now();
-                self.save(graph);
-                self.apply_step(graph);
-                phases.update += since(t);
-                // H is not needed again unless the step may be taken back: the
-                // new point's replaces it (on more than one thread it is
-                // assembled below unless this was the last iteration).
-                let keep_current = self.config.stop_on_increase;
-                let new_chi2 = self.linearize_trial(graph, &mut phases, keep_current);
-                if !new_chi2.is_finite() {
-                    self.restore(graph);
-                    self.linearize(graph, &mut phases);
-                    break 'run Termination::NonFinite;
-                }
-                if keep_lowest && new_chi2 > chi2 && chi2 <= lowest_chi2 {
-                    // `backup` holds the point the step left.
-                    lowest.clone_from(&self.backup);
-                    lowest_chi2 = chi2;
-                }
-                let mut stats = IterationStats {
-                    iteration,
-                    trials: 1,
-                    gradient_max,
-                    phases,
-                    ..Default::default()
-                };
-                let clock = (began, start);
-                // (A step too small to count is no rise: χ² ≈ 0 goes up and down
-                // in its last bits.)
-                if self.config.stop_on_increase && new_chi2 > chi2 && !self.step_is_small(graph) {
-                    // Back to the estimate before the step; H is still its own.
-                    self.restore(graph);
-                    self.pending = Pending::Nothing;
-                    stats.chi2 = new_chi2;
-                    stats.step_max = max_abs(&self.step);
-                    record(stats, began, start, summary, on_iteration);
-                    break 'run Termination::ErrorIncreased;
-                }
-                if let Some(end) =
-                    self.end_iteration(graph, chi2, new_chi2, stats, clock, summary, on_iteration)
-                {
-                    break 'run end;
-                }
-                chi2 = new_chi2;
-            }
-            Termination::MaxIterations
-        };
-        self.return_lowest(graph, summary, &lowest, lowest_chi2);
-        termination
-    }
-
-    /// Puts the graph back at the `lowest`-χ² estimate met if the solve
-    /// ended above it, and says so in the summary.
-    pub(super) fn return_lowest(
-        &self,
-        graph: &mut Graph,
-        summary: &mut Summary,
-        lowest: &[f64],
-        lowest_chi2: f64,
-    ) {
-        if summary.final_chi2 > lowest_chi2 && !lowest.is_empty() {
-            graph.values_mut().params_mut().copy_from_slice(lowest);
-            summary.final_chi2 = lowest_chi2;
-            summary.returned_lowest = true;
-        }
     }
 
     /// Ends an iteration whose step was taken, χ² going from `old_chi2` (for
