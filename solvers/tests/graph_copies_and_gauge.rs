@@ -1,0 +1,93 @@
+//! A graph's copies and how its gauge is fixed.
+
+use cairn_core::{EdgeSE2, Graph, SE2};
+use cairn_solvers::{Algorithm, SolverConfig, Termination, optimize};
+use nalgebra::{Matrix2, Matrix3, Vector2};
+
+mod common;
+use common::noisy_loop;
+
+fn config(algorithm: Algorithm) -> SolverConfig {
+    SolverConfig {
+        algorithm,
+        ..Default::default()
+    }
+}
+
+#[test]
+fn a_cloned_graph_solves_apart_from_its_original() {
+    let g = noisy_loop(25, 11);
+    let start = g.values().params().to_vec();
+    let mut copy = g.clone();
+    assert_eq!(
+        (copy.num_vertices(), copy.num_edges()),
+        (g.num_vertices(), g.num_edges())
+    );
+    assert_eq!(copy.chi2(), g.chi2());
+    copy.set_robust_kernel(0, Some(cairn_core::RobustKernel::Huber(1.0)));
+    assert!(
+        g.edge(0).kernel().is_none(),
+        "the kernel went to the copy only"
+    );
+    copy.set_robust_kernel(0, None);
+    let solved = optimize(&mut copy, config(Algorithm::GaussNewton)).unwrap();
+    assert_eq!(g.values().params(), &start[..], "the original is untouched");
+    let mut original = g.clone();
+    let again = optimize(&mut original, config(Algorithm::GaussNewton)).unwrap();
+    assert_eq!(again.final_chi2, solved.final_chi2);
+    assert_eq!(original.values().params(), copy.values().params());
+}
+
+/// A position-only prior (a GPS fix): rank 2 on an SE2 pose.
+#[derive(Clone)]
+struct Gps(Vector2<f64>);
+
+impl cairn_core::UnaryEdge<2, 3> for Gps {
+    type V = SE2;
+    const NAME: &'static str = "GPS";
+    fn error(&self, x: &SE2) -> nalgebra::SVector<f64, 2> {
+        x.t - self.0
+    }
+}
+
+#[test]
+fn gauge_none_leaves_two_gps_fixes_to_hold_the_graph() {
+    // Two poses 1 m apart, each with a GPS fix that the odometry agrees
+    // with, but the first pose starts 0.3 m off its fix.
+    let mut g = Graph::new();
+    g.add_vertex(0, SE2::new(0.3, 0.2, 0.0)).unwrap();
+    g.add_vertex(1, SE2::new(1.0, 0.0, 0.1)).unwrap();
+    g.add_edge(
+        0,
+        1,
+        EdgeSE2::new(SE2::new(1.0, 0.0, 0.0)),
+        Matrix3::identity(),
+    )
+    .unwrap();
+    g.add_unary_edge(0, Gps(Vector2::new(0.0, 0.0)), Matrix2::identity())
+        .unwrap();
+    g.add_unary_edge(1, Gps(Vector2::new(1.0, 0.0)), Matrix2::identity())
+        .unwrap();
+    // Auto pins pose 0 where it starts: the fixes cannot move it.
+    let mut auto = g.clone();
+    let pinned = optimize(&mut auto, config(Algorithm::GaussNewton)).unwrap();
+    assert_eq!(pinned.gauge, vec![0]);
+    assert!(pinned.final_chi2 > 0.1, "{}", pinned.final_chi2);
+    // None lets the fixes place both poses: χ² ≈ 0, pose 0 on its fix.
+    let free = SolverConfig {
+        gauge: cairn_solvers::Gauge::None,
+        ..config(Algorithm::GaussNewton)
+    };
+    let s = optimize(&mut g, free).unwrap();
+    assert!(s.gauge.is_empty());
+    assert!(s.final_chi2 < 1e-12, "{}", s.final_chi2);
+    let x0: SE2 = g.value(0).unwrap();
+    assert!(x0.t.norm() < 1e-6 && x0.theta.abs() < 1e-6, "{x0:?}");
+    // One fix does not hold the graph: without the gauge H is singular.
+    let mut one = Graph::new();
+    one.add_vertex(0, SE2::new(0.3, 0.2, 0.0)).unwrap();
+    one.add_unary_edge(0, Gps(Vector2::new(0.0, 0.0)), Matrix2::identity())
+        .unwrap();
+    let s = optimize(&mut one, free).unwrap();
+    assert_eq!(s.termination, Termination::NotPositiveDefinite);
+}
