@@ -1,7 +1,7 @@
 //! `cairn fs-eval`: a cone-SLAM run scored against the simulation's truth.
 
-use super::bad_input;
 use super::fs::{TRUTH_ASSOC, TRUTH_MAP, TRUTH_TRAJ, read_text};
+use super::{bad_input, file_name};
 use cairn::plot::{MapPlot, draw};
 use cairn::slam::Cone;
 use cairn::slam::eval::{Report, evaluate, latency_ms, position_errors};
@@ -126,13 +126,7 @@ pub fn run_eval(a: EvalArgs) -> Result<(), super::CliError> {
 
 /// `MAP.csv against TRUTH`: the names of the map file and the truth's folder.
 fn default_title(a: &EvalArgs) -> String {
-    let name = |p: &Path| {
-        p.file_name().map_or_else(
-            || p.display().to_string(),
-            |n| n.to_string_lossy().into_owned(),
-        )
-    };
-    format!("{} against {}", name(&a.map), name(&a.truth))
+    format!("{} against {}", file_name(&a.map), file_name(&a.truth))
 }
 
 /// Refuses a plot file that is neither SVG nor PNG, before any work.

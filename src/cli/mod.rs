@@ -93,6 +93,14 @@ pub fn run(cli: Cli) -> Result<(), CliError> {
     }
 }
 
+/// The last part of `path` (the whole path if it has none), for titles.
+pub fn file_name(path: &std::path::Path) -> String {
+    path.file_name().map_or_else(
+        || path.display().to_string(),
+        |n| n.to_string_lossy().into_owned(),
+    )
+}
+
 /// The bytes of `path`, or of stdin for `-`.
 pub fn read_input(path: &std::path::Path) -> Result<Vec<u8>, CliError> {
     if path.as_os_str() == "-" {

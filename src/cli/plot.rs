@@ -1,7 +1,7 @@
 //! `cairn plot`: a picture of a g2o graph from above.
 
 use super::fs_eval::check_plot_format;
-use super::{CliError, bad_input};
+use super::{CliError, bad_input, file_name};
 use cairn::graph_plot::{draw_graph, picture};
 use clap::Args;
 use std::path::{Path, PathBuf};
@@ -28,13 +28,6 @@ fn read(path: &Path) -> Result<cairn::core::Graph, CliError> {
     let (graph, _) =
         cairn::g2o::read_bytes(&bytes, &Default::default()).map_err(bad_input(path.display()))?;
     Ok(graph)
-}
-
-fn file_name(path: &Path) -> String {
-    path.file_name().map_or_else(
-        || path.display().to_string(),
-        |n| n.to_string_lossy().into_owned(),
-    )
 }
 
 /// Draws the graph.
