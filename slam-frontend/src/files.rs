@@ -3,6 +3,15 @@
 use cairn_core::SE2;
 use std::fmt::Write as _;
 
+/// The log's file name inside a run's folder.
+pub const LOG: &str = "log.jsonl";
+/// The true trajectory (TUM).
+pub const TRUTH_TRAJ: &str = "truth_traj.tum";
+/// The true association of every detection.
+pub const TRUTH_ASSOC: &str = "truth_assoc.csv";
+/// The true cones; their row order gives the ids in `truth_assoc.csv`.
+pub const TRUTH_MAP: &str = "truth_map.csv";
+
 /// A malformed trajectory or association line.
 #[derive(Debug, thiserror::Error)]
 #[error("line {line}: {message}")]

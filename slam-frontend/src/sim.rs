@@ -168,6 +168,64 @@ impl Default for SimConfig {
     }
 }
 
+/// Most laps a simulation drives.
+pub const MAX_LAPS: f64 = 1000.0;
+
+/// The speeds it drives at (m/s).
+pub const SPEEDS: std::ops::RangeInclusive<f64> = 0.1..=100.0;
+
+/// The longest run it simulates (s).
+pub const MAX_DURATION: f64 = 86_400.0;
+
+/// A [`SimConfig`] setting out of range.
+#[derive(Clone, Debug, PartialEq, thiserror::Error)]
+pub enum SimConfigError {
+    /// Laps not in (0, [`MAX_LAPS`]].
+    #[error("laps must be above 0 and at most {MAX_LAPS}, got {0}")]
+    Laps(f64),
+    /// A speed outside [`SPEEDS`].
+    #[error("speed must be from {min} to {max} m/s, got {0}", min = SPEEDS.start(), max = SPEEDS.end())]
+    Speed(f64),
+    /// A run longer than [`MAX_DURATION`].
+    #[error(
+        "{laps} laps of {length:.0} m at {speed} m/s last {seconds:.0} s; the simulator runs at most {MAX_DURATION} s (a day)"
+    )]
+    TooLong {
+        /// Laps driven.
+        laps: f64,
+        /// The course's length (m).
+        length: f64,
+        /// Speed (m/s).
+        speed: f64,
+        /// The run's duration (s).
+        seconds: f64,
+    },
+}
+
+impl SimConfig {
+    /// Checks the laps and speed, and that the run on `course` lasts at
+    /// most [`MAX_DURATION`] (an open course is driven once).
+    pub fn check(&self, course: &Course) -> Result<(), SimConfigError> {
+        if !(self.laps > 0.0 && self.laps <= MAX_LAPS) {
+            return Err(SimConfigError::Laps(self.laps));
+        }
+        if !SPEEDS.contains(&self.speed) {
+            return Err(SimConfigError::Speed(self.speed));
+        }
+        let laps = if course.is_closed() { self.laps } else { 1.0 };
+        let seconds = laps * course.length() / self.speed;
+        if seconds > MAX_DURATION {
+            return Err(SimConfigError::TooLong {
+                laps,
+                length: course.length(),
+                speed: self.speed,
+                seconds,
+            });
+        }
+        Ok(())
+    }
+}
+
 /// A simulated run: the input log and its ground truth.
 #[derive(Clone, Debug)]
 pub struct Simulation {
@@ -179,6 +237,23 @@ pub struct Simulation {
     pub truth_associations: Vec<Association>,
     /// The true cones; their order gives the indices above.
     pub truth_map: Vec<Cone>,
+}
+
+impl Simulation {
+    /// The run as the files of FORMAT.md: (file name, contents) of the log
+    /// and its truth, in the layout `fs-eval --truth` reads.
+    pub fn files(&self) -> [(&'static str, String); 4] {
+        use crate::files::{TRUTH_ASSOC, TRUTH_MAP, TRUTH_TRAJ};
+        [
+            (crate::files::LOG, crate::log::to_jsonl(&self.log)),
+            (TRUTH_TRAJ, crate::files::trajectory_to_tum(&self.truth)),
+            (
+                TRUTH_ASSOC,
+                crate::files::associations_to_csv(&self.truth_associations),
+            ),
+            (TRUTH_MAP, crate::track::map_to_csv(&self.truth_map)),
+        ]
+    }
 }
 
 /// Which physical object a detection came from.

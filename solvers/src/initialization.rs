@@ -115,6 +115,45 @@ impl Starts<'_> {
     }
 }
 
+/// The graph's values and χ² before a solve, put back if the solve ends
+/// worse: a solve must not replace an estimate by a worse one silently
+/// (Gauss-Newton through an indefinite H, say).
+#[derive(Clone, Debug)]
+pub struct StartPoint {
+    values: Vec<f64>,
+    chi2: f64,
+}
+
+impl StartPoint {
+    /// The graph's current values.
+    pub fn of(graph: &Graph) -> Self {
+        Self {
+            values: graph.values().params().to_vec(),
+            chi2: graph.chi2(),
+        }
+    }
+
+    /// χ² at the start.
+    pub fn chi2(&self) -> f64 {
+        self.chi2
+    }
+
+    /// Puts the start back when the graph's χ² is now NaN, or above the
+    /// start's where χ² is the objective (with DCS a lower χ² is not a
+    /// better estimate); returns whether it did.
+    pub fn restore_if_better(&self, graph: &mut Graph) -> bool {
+        let end = graph.chi2();
+        let worse = end.is_nan() || (end > self.chi2 && graph.chi2_is_objective());
+        if worse {
+            graph
+                .values_mut()
+                .params_mut()
+                .copy_from_slice(&self.values);
+        }
+        worse
+    }
+}
+
 /// Initialises as `init` says and optimises. Returns the summary of the run
 /// whose estimate the graph now holds, and which start that was.
 pub fn optimize_from(

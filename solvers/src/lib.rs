@@ -47,7 +47,7 @@ pub use config::{
     SolverConfig, Summary, Termination,
 };
 pub use hessian_layout::HessianLayout;
-pub use initialization::{Initialization, optimize_from, spanning_tree_initialize};
+pub use initialization::{Initialization, StartPoint, optimize_from, spanning_tree_initialize};
 pub use linear::{
     Factorization, LinearSolverConfig, NotPositiveDefinite, Ordering, SparseCholesky,
 };

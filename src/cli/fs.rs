@@ -3,29 +3,22 @@
 mod settings;
 
 use super::{CliError, bad_input, write_output};
+use cairn::slam::Track;
 use cairn::slam::course::Course;
 use cairn::slam::estimator::{EstimatorBuilder, EstimatorKind};
 use cairn::slam::eval::latency_ms;
 use cairn::slam::files;
-use cairn::slam::log::{Log, Record, ScanLimits, to_jsonl};
+use cairn::slam::log::{Log, Record, ScanLimits};
 use cairn::slam::points::PointCloudConfig;
-use cairn::slam::sim::{Preset, SimConfig, point_clouds, simulate};
+use cairn::slam::sim::{Preset, SimConfig, SimConfigError, point_clouds, simulate};
 use cairn::slam::track::TrackError;
 use cairn::slam::track::{map_from_csv, map_to_csv};
 use cairn::slam::trackgen::{TrackRules, random_track};
-use cairn::slam::{Track, TrackKind};
 use clap::Args;
 use settings::{rejection_warning, slam_config};
 use std::path::{Path, PathBuf};
 
-/// File names inside a simulation directory.
-pub const LOG: &str = "log.jsonl";
-/// True trajectory (TUM).
-pub const TRUTH_TRAJ: &str = "truth_traj.tum";
-/// True association of every detection.
-pub const TRUTH_ASSOC: &str = "truth_assoc.csv";
-/// The true cones; their row order gives the ids in `truth_assoc.csv`.
-pub const TRUTH_MAP: &str = "truth_map.csv";
+pub use cairn::slam::files::{LOG, TRUTH_ASSOC, TRUTH_MAP, TRUTH_TRAJ};
 
 /// Options of `cairn fs-sim`.
 #[derive(Debug, Args)]
@@ -194,15 +187,6 @@ fn track_error(path: &Path) -> impl FnOnce(TrackError) -> CliError + '_ {
     }
 }
 
-/// Most laps `fs-sim` drives.
-const MAX_LAPS: f64 = 1000.0;
-
-/// The speeds it drives at (m/s).
-const SPEEDS: std::ops::RangeInclusive<f64> = 0.1..=100.0;
-
-/// The longest run it simulates (s).
-const MAX_DURATION: f64 = 86_400.0;
-
 /// The rules of `fs-sim`'s random track.
 fn track_rules(a: &SimArgs) -> Result<TrackRules, CliError> {
     let mut rules = TrackRules::default();
@@ -226,20 +210,6 @@ fn track_rules(a: &SimArgs) -> Result<TrackRules, CliError> {
 pub fn run_sim(a: SimArgs) -> Result<(), super::CliError> {
     let preset = Preset::by_name(&a.preset)
         .ok_or_else(|| CliError::usage("--preset must be standard or hard"))?;
-    if !(a.laps > 0.0 && a.laps <= MAX_LAPS) {
-        return Err(CliError::usage(format!(
-            "--laps must be above 0 and at most {MAX_LAPS}, got {}",
-            a.laps
-        )));
-    }
-    if !(SPEEDS.contains(&a.speed)) {
-        return Err(CliError::usage(format!(
-            "--speed must be from {} to {} m/s, got {}",
-            SPEEDS.start(),
-            SPEEDS.end(),
-            a.speed
-        )));
-    }
     let rules = track_rules(&a)?;
     let (track, course) = match &a.track {
         Some(path) => {
@@ -249,19 +219,6 @@ pub fn run_sim(a: SimArgs) -> Result<(), super::CliError> {
         }
         None => random_track(a.track_seed.unwrap_or(a.seed), &rules),
     };
-    let laps = if track.kind == TrackKind::Acceleration {
-        1.0
-    } else {
-        a.laps
-    };
-    let duration = laps * course.length() / a.speed;
-    if duration > MAX_DURATION {
-        return Err(CliError::usage(format!(
-            "{laps} laps of {:.0} m at {} m/s last {duration:.0} s; the simulator runs at most {MAX_DURATION} s (a day)",
-            course.length(),
-            a.speed
-        )));
-    }
     let config = SimConfig {
         preset,
         laps: a.laps,
@@ -269,25 +226,22 @@ pub fn run_sim(a: SimArgs) -> Result<(), super::CliError> {
         seed: a.seed,
         ..SimConfig::default()
     };
+    config.check(&course).map_err(|e| {
+        CliError::usage(match e {
+            // The library names the setting; the command line, its flag.
+            SimConfigError::Laps(_) | SimConfigError::Speed(_) => format!("--{e}"),
+            SimConfigError::TooLong { .. } => e.to_string(),
+        })
+    })?;
     let mut sim = simulate(&track, &course, &config);
     if a.points {
         sim = point_clouds(&sim, &PointCloudConfig::default(), a.seed);
     }
     std::fs::create_dir_all(&a.out)
         .map_err(|e| CliError::io(format!("{}: {e}", a.out.display())))?;
-    write_output(&a.out.join(LOG), to_jsonl(&sim.log).as_bytes())?;
-    write_output(
-        &a.out.join(TRUTH_TRAJ),
-        files::trajectory_to_tum(&sim.truth).as_bytes(),
-    )?;
-    write_output(
-        &a.out.join(TRUTH_ASSOC),
-        files::associations_to_csv(&sim.truth_associations).as_bytes(),
-    )?;
-    write_output(
-        &a.out.join(TRUTH_MAP),
-        map_to_csv(&sim.truth_map).as_bytes(),
-    )?;
+    for (file, text) in sim.files() {
+        write_output(&a.out.join(file), text.as_bytes())?;
+    }
     eprintln!(
         "{}: {:.0} m course, {} scans, {} detections → {}",
         track.name,

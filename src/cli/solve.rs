@@ -9,7 +9,7 @@ use cairn::core::RobustKernel;
 use cairn::g2o::ReadOptions;
 use cairn::solvers::{
     Algorithm, Factorization, Initialization, IterationStats, LevenbergMarquardtConfig,
-    LinearSolverConfig, Optimizer, Ordering, SolverConfig, optimize_from,
+    LinearSolverConfig, Optimizer, Ordering, SolverConfig, StartPoint, optimize_from,
 };
 use clap::{Args, ValueEnum};
 use std::fmt::Write as _;
@@ -351,7 +351,7 @@ fn solve(a: SolveArgs) -> Result<(), CliError> {
     let quiet = a.quiet;
     // A solve that ends above where the file started (Gauss-Newton through
     // an indefinite H, say) must not replace the file's estimate silently.
-    let (start_values, start_chi2) = (graph.values().params().to_vec(), graph.chi2());
+    let start = StartPoint::of(&graph);
     let (summary, used) = optimize_from(&mut graph, config, init, &mut |start, s| {
         if !quiet {
             eprintln!(
@@ -363,7 +363,6 @@ fn solve(a: SolveArgs) -> Result<(), CliError> {
     })
     .map_err(|e| format!("{name}: {e}"))?;
     let solve = t.elapsed().as_secs_f64();
-    let end_chi2 = graph.chi2();
     if summary.returned_lowest {
         eprintln!(
             "warning: {name}: the last iterate ({:?}) was above the lowest χ² met, {:.6e}; \
@@ -371,17 +370,14 @@ fn solve(a: SolveArgs) -> Result<(), CliError> {
             summary.termination, summary.final_chi2
         );
     }
-    // (With DCS a lower χ² is not a better estimate: only NaN is refused.)
-    let kept_start = end_chi2.is_nan() || (end_chi2 > start_chi2 && graph.chi2_is_objective());
+    let kept_start = start.restore_if_better(&mut graph);
     if kept_start {
-        graph
-            .values_mut()
-            .params_mut()
-            .copy_from_slice(&start_values);
         eprintln!(
-            "warning: {name}: the solve ended at χ² {:.6e} ({:?}), above the file's {start_chi2:.6e}; \
+            "warning: {name}: the solve ended at χ² {:.6e} ({:?}), above the file's {:.6e}; \
              the file's estimate is kept",
-            summary.final_chi2, summary.termination
+            summary.final_chi2,
+            summary.termination,
+            start.chi2()
         );
     }
 
