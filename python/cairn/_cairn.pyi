@@ -1,6 +1,7 @@
 """Type stubs of Cairn's native module."""
 
 import os
+import pathlib
 from typing import Any, Optional, Sequence, Union
 
 import numpy as np
@@ -106,5 +107,5 @@ def fs_sim(
     laps: float = 2.0,
     speed: float = 5.0,
     preset: str = "standard",
-) -> list[str]:
+) -> list[pathlib.Path]:
     """Simulates a run and writes log.jsonl and its truth files into `out`."""
