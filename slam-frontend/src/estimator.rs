@@ -25,6 +25,11 @@ pub trait Estimator {
     fn timing(&self) -> &Timing;
     /// Loop closures detected so far.
     fn loop_closures(&self) -> usize;
+    /// Times the pose, too uncertain to match detections one by one, was
+    /// found on the map again (the graph front end's relocalisation).
+    fn relocalisations(&self) -> usize {
+        0
+    }
     /// Mapping or localising.
     fn mode(&self) -> Mode;
     /// Ends the run after the last record (the graph front end's final
@@ -190,6 +195,9 @@ impl Estimator for GraphSlam {
     }
     fn loop_closures(&self) -> usize {
         GraphSlam::loop_closures(self)
+    }
+    fn relocalisations(&self) -> usize {
+        GraphSlam::relocalisations(self)
     }
     fn mode(&self) -> Mode {
         GraphSlam::mode(self)

@@ -73,6 +73,12 @@ pub struct FrontEndConfig {
     pub loop_min_returned: usize,
     /// After the first loop closure, stop mapping and localise on the map.
     pub localise_after_loop: bool,
+    /// When the drift since the last scan that matched a landmark makes a
+    /// detection uncertain by more than this σ (m), scans are not matched
+    /// one by one but wait until several together fit the map
+    /// (relocalisation); 0 turns this off. The default, 0.5 m, is a quarter
+    /// of the 2 m between landmarks a wide gate must tell apart.
+    pub relocalise_sigma: f64,
 }
 
 impl Default for FrontEndConfig {
@@ -101,6 +107,7 @@ impl Default for FrontEndConfig {
             confirm_after: 3,
             loop_min_returned: 4,
             localise_after_loop: true,
+            relocalise_sigma: 0.5,
         }
     }
 }
@@ -203,6 +210,7 @@ impl FrontEndConfig {
                 NonNegative,
             ),
             ("yaw_rate_sigma", self.yaw_rate_sigma, Positive),
+            ("relocalise_sigma", self.relocalise_sigma, NonNegative),
             ("yaw_rate_noise", self.yaw_rate_noise, Positive),
             ("gate", self.gate, Positive),
             (

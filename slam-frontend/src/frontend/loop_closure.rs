@@ -14,7 +14,10 @@ use std::time::Instant;
 /// How far back the landmarks of [`GraphSlam::recent_submap`] were made (m).
 const RECENT: f64 = 40.0;
 
-/// A scan near the start, kept until the loop closes.
+/// A scan kept to be matched again later (near the start until the loop
+/// closes, every scan until the end of the run, scans waiting for
+/// relocalisation).
+#[derive(Clone, Debug)]
 pub(super) struct PendingScan {
     /// Its pose.
     pub keyframe: usize,

@@ -15,11 +15,13 @@ mod hindsight;
 mod landmarks;
 mod loop_closure;
 mod optimise;
+mod pose;
+mod relocalise;
 mod window;
 pub use calibration::Calibration;
 pub use config::{ConfigError, FrontEndConfig};
+use edges::OdometryEdge;
 pub use edges::nearest_information;
-use edges::{OdometryEdge, odometry_information};
 pub(crate) use optimise::MERGE_RADIUS;
 
 use crate::files::{Association, StampedPose};
@@ -29,7 +31,7 @@ use crate::sighting::{ColorRate, MIN_LOOP, Sighting};
 use crate::track::Cone;
 use association::{Correlation, associate};
 use cairn_core::SE2;
-use nalgebra::{Matrix2, Matrix3, SMatrix, Vector2};
+use nalgebra::{Matrix2, Matrix3, Vector2};
 use std::collections::HashMap;
 use std::time::Instant;
 
@@ -120,6 +122,14 @@ pub struct GraphSlam {
     scan_log: Vec<loop_closure::PendingScan>,
     warnings: Vec<String>,
     colors: ColorRate,
+    /// Scans waiting, unmatched, for the pose to be found on the map again
+    /// ([`relocalise`]).
+    lost_scans: Vec<loop_closure::PendingScan>,
+    /// Times the pose was found on the map again.
+    relocalisations: usize,
+    /// The motion since the last scan that matched a landmark, and its
+    /// covariance: how far the pose may have drifted from the map.
+    drift: (SE2, Matrix3<f64>),
 }
 
 impl GraphSlam {
@@ -153,6 +163,9 @@ impl GraphSlam {
             scan_log: Vec::new(),
             warnings: Vec::new(),
             colors,
+            lost_scans: Vec::new(),
+            relocalisations: 0,
+            drift: (SE2::identity(), Matrix3::zeros()),
         }
     }
 
@@ -184,6 +197,12 @@ impl GraphSlam {
     /// Loop closures detected so far.
     pub fn loop_closures(&self) -> usize {
         self.loop_closures
+    }
+
+    /// Times the pose, grown too uncertain to match detections one by one,
+    /// was found on the map again from several scans together.
+    pub fn relocalisations(&self) -> usize {
+        self.relocalisations
     }
 
     /// Update and optimisation times.
@@ -230,7 +249,8 @@ impl GraphSlam {
     /// ([`Timing::final_optimisation`]). A failed solve keeps the estimate
     /// as it was.
     pub fn finish(&mut self) -> Result<(), OptimiseError> {
-        if self.loop_closures == 0 || self.timing.final_optimisation.is_some() {
+        let revisited = self.loop_closures > 0 || self.relocalisations > 0;
+        if !revisited || self.timing.final_optimisation.is_some() {
             return Ok(());
         }
         let start = Instant::now();
@@ -299,6 +319,25 @@ impl GraphSlam {
         let step_time2 = self.motion.step_time2();
         let (delta, delta_cov) = self.motion.take();
         let (pred, pred_cov) = compose_with_cov(&previous, &self.pose_cov, &delta, &delta_cov);
+        self.drift = compose_with_cov(&self.drift.0, &self.drift.1, &delta, &delta_cov);
+        if self.mode == Mode::Mapping && self.config.relocalise_sigma > 0.0 {
+            let limit = self.config.relocalise_sigma;
+            let uncertain = cones
+                .iter()
+                .any(|d| relocalise::pose_sigma_at(&self.drift.1, d.position.norm()) > limit);
+            let waiting = !self.lost_scans.is_empty();
+            if waiting || (uncertain && self.map_near(&pred)) {
+                self.wait_lost(
+                    t,
+                    scan,
+                    cones,
+                    (pred, pred_cov),
+                    (delta, delta_cov),
+                    step_time2,
+                );
+                return;
+            }
+        }
 
         let covs: Vec<Matrix2<f64>> = cones.iter().map(|d| self.config.detection_cov(d)).collect();
         let (candidates, nearest) =
@@ -333,20 +372,17 @@ impl GraphSlam {
             self.calibration
                 .learn(&previous, &pred, &pose, dt, learn_bias);
         }
-        self.pose = pose;
-        self.pose_cov = pose_cov;
-        let keyframe = self.poses.len();
-        self.poses.push(StampedPose { t, pose });
-        if keyframe > 0 {
-            self.odometry.push(OdometryEdge {
-                delta,
-                information: odometry_information(&delta_cov),
-                dt: t - self.poses[keyframe - 1].t,
-                yaw_rate_bias: bias_used,
-                heading_variance: self.config.yaw_rate_noise.powi(2) * step_time2,
-            });
-        }
+        let keyframe = self.push_keyframe(
+            t,
+            (pose, pose_cov),
+            (delta, delta_cov),
+            step_time2,
+            bias_used,
+        );
 
+        if assigned.iter().any(Option::is_some) {
+            self.drift = (SE2::identity(), Matrix3::zeros());
+        }
         let mut returned = 0;
         let mut associated = vec![false; self.landmarks.len()];
         let mut taken = vec![false; self.landmarks.len()];
@@ -431,54 +467,6 @@ impl GraphSlam {
             l = self.alias[l];
         }
         l
-    }
-
-    /// Gauss-Newton on the pose alone, landmarks held at their EKF means.
-    fn localise(
-        &self,
-        pred: &SE2,
-        pred_cov: &Matrix3<f64>,
-        cones: &[Detection],
-        covs: &[Matrix2<f64>],
-        assigned: &[Option<usize>],
-    ) -> (SE2, Matrix3<f64>) {
-        let prior_info = nearest_information(pred_cov);
-        let mut x = pred.to_vector();
-        let mut h = prior_info;
-        for _ in 0..3 {
-            let pose = SE2::from_vector(&x);
-            let rt = pose.rotation().transpose();
-            let drt = Matrix2::new(0.0, 1.0, -1.0, 0.0) * rt;
-            let mut dx = x - pred.to_vector();
-            dx[2] = cairn_core::se2::normalize_angle(dx[2]);
-            h = prior_info;
-            let mut g = -(prior_info * dx);
-            for (i, l) in assigned.iter().enumerate() {
-                let Some(l) = *l else { continue };
-                let lm = &self.landmarks[l];
-                if lm.sighting.seen < 2 {
-                    continue;
-                }
-                let diff = lm.mean - pose.t;
-                let e = cones[i].position - rt * diff;
-                let mut j = SMatrix::<f64, 2, 3>::zeros();
-                j.fixed_view_mut::<2, 2>(0, 0).copy_from(&(-rt));
-                j.fixed_view_mut::<2, 1>(0, 2).copy_from(&(drt * diff));
-                let s = rt * lm.cov * rt.transpose() + covs[i];
-                let w = nearest_information(&s);
-                h += j.transpose() * w * j;
-                g += j.transpose() * w * e;
-            }
-            let Some(step) = h.cholesky().map(|c| c.solve(&g)) else {
-                break;
-            };
-            x += step;
-            if step.norm() < 1e-9 {
-                break;
-            }
-        }
-        let cov = h.try_inverse().unwrap_or(*pred_cov);
-        (SE2::from_vector(&x), 0.5 * (cov + cov.transpose()))
     }
 
     /// Whether landmark `l` is part of the map: confirmed, not removed and
