@@ -6,8 +6,8 @@ use cairn_slam::course::Course;
 use cairn_slam::estimator::{EstimatorBuilder, EstimatorKind};
 use cairn_slam::frontend::FrontEndConfig;
 use cairn_slam::frontend::association::AssociationMethod;
-use cairn_slam::log::{Log, Record, ScanLimits};
-use cairn_slam::points::PointCloudConfig;
+use cairn_slam::log::{Log, ScanLimits};
+use cairn_slam::run::run_log;
 use cairn_slam::sim::{Preset, SimConfig, simulate};
 use cairn_slam::track::{Track, TrackError};
 use cairn_slam::trackgen::{TrackRules, random_track};
@@ -76,19 +76,9 @@ pub fn fs_slam<'py>(
         let mut builder = EstimatorBuilder::new(kind, settings);
         builder.particles = particles;
         builder.seed = seed;
-        if log
-            .records
-            .iter()
-            .any(|r| matches!(r, Record::Points { .. }))
-        {
-            builder.points = Some(PointCloudConfig::default());
-        }
-        let mut slam = builder.build();
-        for record in &log.records {
-            slam.process(record);
-        }
+        let (slam, finished) = run_log(&builder, &log);
         let mut warnings = slam.warnings().to_vec();
-        if let Err(e) = slam.finish() {
+        if let Err(e) = finished {
             warnings.push(format!(
                 "the final optimisation failed ({e}); kept the estimate"
             ));

@@ -1,9 +1,37 @@
-//! One simulated run end to end, as the report, the study and the tests use it.
+//! A log or a simulated run end to end, as the command line, the report,
+//! the study and the tests use it.
 
 use crate::estimator::{Estimator, EstimatorBuilder};
 use crate::eval::{Report, evaluate, latency_ms};
 use crate::frontend::{FrontEndConfig, GraphSlam, OptimiseError};
+use crate::log::{Log, Record};
+use crate::points::PointCloudConfig;
 use crate::sim::Simulation;
+
+/// Runs the estimator `builder` describes over a whole log and finishes it.
+/// A log of point clouds goes through the clustering front end first (with
+/// default settings unless the builder has its own). Returns the estimator
+/// and the final optimisation's outcome: when it failed, the estimate is
+/// the one before it.
+pub fn run_log(
+    builder: &EstimatorBuilder,
+    log: &Log,
+) -> (Box<dyn Estimator>, Result<(), OptimiseError>) {
+    let mut builder = builder.clone();
+    let points = log
+        .records
+        .iter()
+        .any(|r| matches!(r, Record::Points { .. }));
+    if points && builder.points.is_none() {
+        builder.points = Some(PointCloudConfig::default());
+    }
+    let mut slam = builder.build();
+    for record in &log.records {
+        slam.process(record);
+    }
+    let finished = slam.finish();
+    (slam, finished)
+}
 
 /// Feeds a simulated log to a new graph front end and scores the result.
 pub fn run_and_score(sim: &Simulation, config: FrontEndConfig) -> (GraphSlam, Report) {

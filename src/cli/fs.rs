@@ -10,6 +10,7 @@ use cairn::slam::eval::latency_ms;
 use cairn::slam::files;
 use cairn::slam::log::{Log, Record, ScanLimits};
 use cairn::slam::points::PointCloudConfig;
+use cairn::slam::run::run_log;
 use cairn::slam::sim::{Preset, SimConfig, SimConfigError, point_clouds, simulate};
 use cairn::slam::track::TrackError;
 use cairn::slam::track::{map_from_csv, map_to_csv};
@@ -317,19 +318,8 @@ pub fn run_slam(a: SlamArgs) -> Result<(), super::CliError> {
     builder.seed = a.seed;
     builder.map = map.as_deref();
     builder.known = known.as_deref();
-    // A log of point clouds goes through the clustering front end first.
-    if log
-        .records
-        .iter()
-        .any(|r| matches!(r, Record::Points { .. }))
-    {
-        builder.points = Some(PointCloudConfig::default());
-    }
-    let mut slam = builder.build();
-    for record in &log.records {
-        slam.process(record);
-    }
-    if let Err(e) = slam.finish() {
+    let (slam, finished) = run_log(&builder, &log);
+    if let Err(e) = finished {
         eprintln!("warning: the final optimisation failed ({e}); writing the estimate as it was");
     }
     for warning in slam.warnings() {
