@@ -82,16 +82,9 @@ pub struct LevenbergMarquardtConfig {
     /// The first λ: relative to each diagonal entry (Marquardt), or
     /// × max(diag H) (Levenberg). Default 1e-12; g2o's is 1e-5.
     ///
-    /// Small because a pose graph's softest modes, the bending of long
-    /// chains of poses, have curvatures far below any diagonal entry (a
-    /// chain of n poses: about 1/n² of it), and damping them slows
-    /// convergence for many iterations. 1e-12 leaves chains of up to 10⁶
-    /// poses undamped. Over the benchmark files a first λ of 1e-5 needed
-    /// 2–4× the iterations of 1e-9 (CSAIL 15 against 5, ringCity 21 against
-    /// 7), and 1e-9 still held ais2klinik's 15,115-pose chain back (12
-    /// iterations to χ² 173.12 against 6 to 172.8156 with 1e-12). A step
-    /// that fails raises λ by 2¹⁺²⁺…, so real damping is a few rejected
-    /// steps away.
+    /// Small because the bending of long chains of poses has curvatures far
+    /// below any diagonal entry; damping it slows convergence
+    /// (docs/bench/lm-options.md has the measurements).
     pub tau: f64,
     /// Rejected steps in a row, with λ raised each time, before giving up. Default 10.
     pub max_trials: usize,
@@ -103,31 +96,16 @@ pub struct LevenbergMarquardtConfig {
     /// by a fair share of what the models predicted since, even if it
     /// raises χ² from the current point; the estimate returned is the one
     /// with the lowest χ² met. From poor starts this lets LM follow the
-    /// Gauss-Newton path out of a nearer, worse minimum. On the benchmark
-    /// files: input_INTEL_g2o 13199 → 215.84 (Gauss-Newton's 215.83),
-    /// M3500a 7606 → 6673, M3500b 9320 → 8179 (100 iterations → 37),
-    /// sphere_bignoise_vertex3 819279 → 760708, but M3500c 7490 → 9144; the
-    /// files that start near their optimum end at the same χ². On generated
-    /// spheres with 0.1 rad rotation noise it ended lower on 5 of 6; on
-    /// generated Manhattan worlds with 0.06–0.1 rad it ended higher on 9 of
-    /// 14 and lower on 4 (0 suits those better).
+    /// Gauss-Newton path out of a nearer, worse minimum.
     pub nonmonotonic_steps: usize,
     /// Gauss-Newton steps LM may follow when its first step raises χ²
     /// (with non-monotonic steps allowed: a monotone LM never climbs).
     /// Default 10; 0 (as g2o) rejects that step and raises λ.
     ///
-    /// From a poor start the undamped first step can climb before the
-    /// Gauss-Newton path drops into a minimum (input_INTEL_g2o: χ² 5.1·10⁶,
-    /// then 1.6·10⁸, 9.7·10⁶, 3.8·10⁴, 215.9, 215.83), where LM, refusing
-    /// the climb, took 58 damped iterations to reach 215.84. So LM follows
-    /// the path from its first step: it keeps the steps if each after the
-    /// first lowers χ² and the path settles (χ² falls by less than 0.1% in
-    /// a step) below the starting χ² within this many steps, and otherwise
-    /// goes back to the start and raises λ. A path that drops below the
-    /// start without settling is not taken: on generated Manhattan worlds
-    /// with 0.07–0.1 rad rotation noise such paths ended higher on 8 of 10.
-    /// With it, every benchmark file but input_INTEL_g2o (6 iterations)
-    /// and 30 generated graphs end where they did without it.
+    /// LM keeps the Gauss-Newton path from its first step if each step
+    /// after the first lowers χ² and the path settles (χ² falls by less than
+    /// 0.1% in a step) below the starting χ² within this many steps;
+    /// otherwise it goes back to the start and raises λ.
     #[serde(default = "default_lookahead_steps")]
     pub lookahead_steps: usize,
     /// Shorten a step whose χ² falls by less than a quarter of what its
@@ -135,15 +113,6 @@ pub struct LevenbergMarquardtConfig {
     /// point, its slope along the step and χ² at the step's end, if that
     /// lowers χ² further (one more linearisation). Default true; false (as
     /// g2o) keeps every accepted step whole.
-    ///
-    /// From poor starts, whole steps can overshoot. On 25 generated spheres
-    /// (`cairn generate sphere`, 400–2,900 poses with 0.05–0.15 rad rotation
-    /// noise, from their odometry) it ended lower on 15, higher on 2 and the
-    /// same (to 1e-6) on 8, in 4% fewer iterations (1,795 against 1,871); a
-    /// 400-pose sphere with 0.08 rad reaches 2288 in 13 iterations instead
-    /// of 3.7·10⁷ after 100. Of the 36 files in `../shared/datasets`, 33
-    /// end where they do without it; M3500c takes 55 iterations instead of
-    /// 57, M3500b 36 instead of 37 (at 8509 against 8179).
     #[serde(default = "default_line_search")]
     pub line_search: bool,
 }

@@ -226,28 +226,19 @@ impl GraphSlam {
         self.pose
     }
 
-    /// Ends the run. When this run closed its loop, the detections left
-    /// unmatched in real time (or matched to a landmark that never joined
-    /// the map) are matched again from the poses as they now stand, within
-    /// the χ² [`FINAL_GATE`] (`hard` preset, 15 tracks × 10 seeds:
-    /// association 92.9 → 95.3% at a 99.9% gate; `standard` 99.53 →
-    /// 99.56%), every pose and landmark is optimised once more with all
-    /// sightings, the laps driven on the fixed map included (each lap's gyro
-    /// drift is independent, so the laps together pin the map's shape better
-    /// than the first alone: standard preset, 15 tracks × 10 seeds, map RMSE
-    /// 0.126 → 0.081 m), and then landmarks the whole run calls clutter
-    /// leave the map. Unless [`FrontEndConfig::hindsight`] is off, every
-    /// detection is then matched again and the map optimised once more:
-    /// with tracking association along its tracker id's chain of sightings
-    /// (15 tracks × 5 seeds: association `standard` 99.86 → 99.96%, `hard`
-    /// 98.31 → 99.46%; the EUFS tracks' `hard` runs from 95.3–96.7% to
-    /// 98.5–99.6%), with the other methods scan by scan, as the scan's most
-    /// likely assignment (15 tracks × 10 seeds, `hard`: 97.2–98.0% →
-    /// 98.0–98.4% claim by claim; 15 tracks × 5 seeds jointly, `standard`
-    /// 99.88 → 99.92%, `hard` 98.32–98.44 → 98.46–98.60%). Not real-time: 40 ms–1.3 s for two
-    /// laps, reported apart from the loop closures
-    /// ([`Timing::final_optimisation`]). A failed solve keeps the estimate
-    /// as it was.
+    /// Ends the run. When this run closed its loop (or found itself on its
+    /// map again after drifting), the detections left unmatched in real
+    /// time are matched again from the poses as they now stand, within the
+    /// χ² [`FINAL_GATE`]; every pose and landmark is optimised once more
+    /// with all sightings, the laps driven on the fixed map included; and
+    /// landmarks the whole run calls clutter leave the map. Unless
+    /// [`FrontEndConfig::hindsight`] is off, every detection is then
+    /// matched again (with tracking association along its tracker id's
+    /// chain of sightings, with the other methods scan by scan) and the map
+    /// optimised once more. Not real-time: its time is reported apart from
+    /// the loop closures ([`Timing::final_optimisation`]). A failed solve
+    /// keeps the estimate as it was. docs/bench/frontend-options.md has the
+    /// measurements behind each step.
     pub fn finish(&mut self) -> Result<(), OptimiseError> {
         let revisited = self.loop_closures > 0 || self.relocalisations > 0;
         if !revisited || self.timing.final_optimisation.is_some() {
@@ -519,12 +510,8 @@ impl GraphSlam {
 }
 
 /// Gate of the matching at the end of the run (χ², 2 dof, 99.99%): the
-/// poses are optimised by then, and the 99% gate that keeps the `hard`
-/// preset's false positives out in real time left 1.5% of its detections
-/// unmatched. The final optimisation's robust kernel takes the sting out of
-/// the few wrong matches a wide gate lets in: on 15 tracks × 10 seeds the
-/// 99.9% gate matched 98.19% (`hard`) and 99.78% (`standard`) right, this
-/// one 98.32% and 99.83%, and 99.999% 98.28%.
+/// poses are optimised by then, and the final optimisation's robust kernel
+/// takes the sting out of the few wrong matches a wide gate lets in.
 pub const FINAL_GATE: f64 = 18.42;
 
 /// χ² quantile at 99% for `dof` degrees of freedom (Wilson–Hilferty).
