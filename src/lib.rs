@@ -7,6 +7,11 @@
 //! - [`slam`]: the cone-SLAM front end; [`fs_tools`]: importers of real recordings;
 //! - [`generate`]: synthetic benchmark graphs.
 //!
+//! Features: `cli` (the default) builds the `cairn` command line and turns
+//! on `plot` (pictures of tracks, maps and graphs: [`plot`], [`graph_plot`]),
+//! which turns on `slam` ([`slam`] and [`fs_tools`]). A library that needs
+//! only the solvers depends on `cairn` with `default-features = false`.
+//!
 //! ```
 //! use cairn::g2o::{read_bytes, ReadOptions};
 //! use cairn::solvers::{optimize, SolverConfig};
@@ -19,12 +24,16 @@
 //! ```
 
 pub use cairn_core as core;
+#[cfg(feature = "slam")]
 pub use cairn_fs_tools as fs_tools;
 pub use cairn_g2o as g2o;
+#[cfg(feature = "slam")]
 pub use cairn_slam as slam;
 pub use cairn_solvers as solvers;
 
 pub mod generate;
+#[cfg(feature = "plot")]
 pub mod graph_plot;
 pub mod outliers;
+#[cfg(feature = "plot")]
 pub mod plot;
