@@ -110,7 +110,7 @@ pub fn diagnose(graph: &Graph, worst: usize) -> Diagnostics {
     }
     components.sort_unstable_by(|a, b| b.cmp(a));
     let gauge = graph
-        .gauge_vertices_of(&comps)
+        .gauge_indices(&comps)
         .into_iter()
         .map(|v| graph.vertex(v).id)
         .collect();

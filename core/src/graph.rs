@@ -313,14 +313,10 @@ impl Graph {
         Ok(())
     }
 
-    /// Whether the vertex at `index` is fixed.
-    pub fn is_fixed(&self, index: usize) -> bool {
-        self.vertices[index].fixed
-    }
-
-    /// Fixes or releases the vertex at `index`.
-    pub fn set_fixed_index(&mut self, index: usize, fixed: bool) {
-        self.vertices[index].fixed = fixed;
+    /// Whether vertex `id` is held constant ([`VertexView::fixed`] reads it
+    /// by index).
+    pub fn is_fixed(&self, id: VertexId) -> Result<bool, GraphError> {
+        Ok(self.vertices[self.checked_index(id)?].fixed)
     }
 
     /// Adds a binary edge from vertex `from` to vertex `to`; returns its edge number.

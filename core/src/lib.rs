@@ -17,7 +17,7 @@
 //! graph.add_edge(0, 1, step.clone(), Matrix3::identity())?;
 //! graph.add_edge(1, 2, step, Matrix3::identity())?;
 //! assert!((graph.chi2() - (0.04 + 0.09)).abs() < 1e-12); // errors 0.2 and −0.3
-//! assert_eq!(graph.gauge_vertices(), vec![0]); // the lowest-id pose
+//! assert_eq!(graph.gauge_vertices(), vec![0]); // the lowest-id pose's id
 //! # Ok::<(), cairn_core::GraphError>(())
 //! ```
 

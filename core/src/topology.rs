@@ -82,17 +82,19 @@ impl Graph {
         Components { label, count }
     }
 
-    /// The vertices to hold fixed so that every component has a gauge: for each
-    /// component with no fixed vertex and no full-rank prior, its lowest-id pose
-    /// (its lowest-id vertex if it has no pose). Deterministic, unlike g2o's
-    /// choice of an arbitrary vertex.
-    pub fn gauge_vertices(&self) -> Vec<usize> {
-        self.gauge_vertices_of(&self.components())
+    /// The ids of the vertices to hold fixed so that every component has a
+    /// gauge: for each component with no fixed vertex and no full-rank
+    /// prior, its lowest-id pose (its lowest-id vertex if it has no pose).
+    /// Deterministic, unlike g2o's choice of an arbitrary vertex.
+    pub fn gauge_vertices(&self) -> Vec<VertexId> {
+        let comps = self.components();
+        let indices = self.gauge_indices(&comps);
+        indices.into_iter().map(|v| self.vertex(v).id).collect()
     }
 
-    /// [`Graph::gauge_vertices`] given the graph's [`Graph::components`], for
-    /// callers that need both.
-    pub fn gauge_vertices_of(&self, comps: &Components) -> Vec<usize> {
+    /// The indices (insertion order) of [`Graph::gauge_vertices`], given the
+    /// graph's [`Graph::components`], for callers that need both.
+    pub fn gauge_indices(&self, comps: &Components) -> Vec<usize> {
         let mut anchored = vec![false; comps.count];
         for v in self.vertices() {
             if v.fixed {

@@ -80,9 +80,9 @@ fn solve_linear(aux: &mut Graph) -> Result<(), SolveError> {
 /// Vertices that keep their values: the fixed ones and the automatic gauge.
 fn anchors(graph: &Graph) -> Vec<bool> {
     let mut keep: Vec<bool> = (0..graph.num_vertices())
-        .map(|v| graph.is_fixed(v))
+        .map(|v| graph.vertex(v).fixed)
         .collect();
-    for v in graph.gauge_vertices() {
+    for v in graph.gauge_indices(&graph.components()) {
         keep[v] = true;
     }
     keep

@@ -33,9 +33,9 @@ pub enum Initialization {
 /// and gauge vertices.
 pub fn spanning_tree_initialize(graph: &mut Graph) {
     let mut unknown: Vec<bool> = (0..graph.num_vertices())
-        .map(|v| !graph.is_fixed(v))
+        .map(|v| !graph.vertex(v).fixed)
         .collect();
-    for v in graph.gauge_vertices() {
+    for v in graph.gauge_indices(&graph.components()) {
         unknown[v] = false;
     }
     graph.initialize_spanning_tree(&unknown);

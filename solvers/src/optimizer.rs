@@ -104,11 +104,11 @@ impl Optimizer {
         let start = Instant::now();
         let components = graph.components();
         let gauge_vertices = match config.gauge {
-            Gauge::Auto => graph.gauge_vertices_of(&components),
+            Gauge::Auto => graph.gauge_indices(&components),
             Gauge::None => Vec::new(),
         };
         let mut fixed: Vec<bool> = (0..graph.num_vertices())
-            .map(|v| graph.is_fixed(v))
+            .map(|v| graph.vertex(v).fixed)
             .collect();
         for &v in &gauge_vertices {
             fixed[v] = true;

@@ -91,3 +91,32 @@ fn gauge_none_leaves_two_gps_fixes_to_hold_the_graph() {
     let s = optimize(&mut one, free).unwrap();
     assert_eq!(s.termination, Termination::NotPositiveDefinite);
 }
+
+/// The graph's API speaks ids: the gauge it picks and whether a vertex is
+/// fixed are given by id, as `set_fixed` takes it and `Summary::gauge`
+/// reports it, not by insertion index.
+#[test]
+fn the_gauge_and_fixed_vertices_are_named_by_id() {
+    let mut graph = Graph::new();
+    // Inserted out of id order, two components.
+    for (id, x) in [(30, 2.0), (10, 0.0), (20, 1.0), (41, 5.0), (40, 4.0)] {
+        graph.add_vertex(id, SE2::new(x, 0.0, 0.0)).unwrap();
+    }
+    let step = EdgeSE2::new(SE2::new(1.0, 0.0, 0.0));
+    graph
+        .add_edge(10, 20, step.clone(), Matrix3::identity())
+        .unwrap();
+    graph
+        .add_edge(20, 30, step.clone(), Matrix3::identity())
+        .unwrap();
+    graph.add_edge(40, 41, step, Matrix3::identity()).unwrap();
+    assert_eq!(graph.gauge_vertices(), vec![10, 40]);
+    graph.set_fixed(41, true).unwrap();
+    assert_eq!(graph.is_fixed(41).ok(), Some(true));
+    assert_eq!(graph.is_fixed(40).ok(), Some(false));
+    assert!(graph.is_fixed(99).is_err());
+    // A fixed vertex anchors its component: only the first needs a gauge.
+    assert_eq!(graph.gauge_vertices(), vec![10]);
+    let summary = optimize(&mut graph, SolverConfig::default()).unwrap();
+    assert_eq!(summary.gauge, vec![10]);
+}
