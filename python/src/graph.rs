@@ -240,7 +240,9 @@ impl Graph {
         };
         let graph = &mut self.inner;
         let solved = py.detach(|| {
-            let kernels: Vec<Option<RobustKernel>> = graph.edges().map(|e| e.kernel()).collect();
+            // The edges' own kernels (from a g2o file, say), put back after.
+            let own: Option<Vec<Option<RobustKernel>>> =
+                kernel.map(|_| graph.edges().map(|e| e.kernel()).collect());
             if kernel.is_some() {
                 for k in 0..graph.num_edges() {
                     graph.set_robust_kernel(k, kernel);
@@ -249,7 +251,7 @@ impl Graph {
             let before = StartPoint::of(graph);
             let solved = optimize_from(graph, config, start, &mut |_, _| {});
             let kept_start = before.restore_if_better(graph);
-            for (k, old) in kernels.into_iter().enumerate() {
+            for (k, old) in own.into_iter().flatten().enumerate() {
                 graph.set_robust_kernel(k, old);
             }
             solved.map(|(summary, used)| (summary, used, kept_start))
