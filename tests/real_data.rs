@@ -41,6 +41,30 @@ fn s(p: &Path) -> &str {
     p.to_str().expect("a UTF-8 path")
 }
 
+/// `fs-slam` on the imported log in `dir` with `configs/mrclam.toml` and
+/// `options`, its outputs in `dir` as (map, trajectory, associations).
+fn slam(dir: &Path, options: &[&str]) -> (Output, [PathBuf; 3]) {
+    let config = Path::new(env!("CARGO_MANIFEST_DIR")).join("configs/mrclam.toml");
+    let outputs = [
+        dir.join("map.csv"),
+        dir.join("traj.tum"),
+        dir.join("assoc.csv"),
+    ];
+    let [map, traj, assoc] = &outputs;
+    let log = dir.join("log.jsonl");
+    let mut args = vec!["fs-slam", s(&log), "--config", s(&config)];
+    args.extend_from_slice(options);
+    args.extend([
+        "--map-out",
+        s(map),
+        "--traj-out",
+        s(traj),
+        "--assoc-out",
+        s(assoc),
+    ]);
+    (cairn(&args), outputs)
+}
+
 #[test]
 fn every_estimator_maps_an_imported_mrclam_robot() {
     let Some(dataset) = dataset6() else { return };
@@ -63,25 +87,7 @@ fn every_estimator_maps_an_imported_mrclam_robot() {
     );
     let config = Path::new(env!("CARGO_MANIFEST_DIR")).join("configs/mrclam.toml");
     for estimator in ["graph", "ekf", "fastslam1", "fastslam2"] {
-        let (map, traj, assoc) = (
-            dir.join("map.csv"),
-            dir.join("traj.tum"),
-            dir.join("assoc.csv"),
-        );
-        let o = cairn(&[
-            "fs-slam",
-            s(&dir.join("log.jsonl")),
-            "--config",
-            s(&config),
-            "--estimator",
-            estimator,
-            "--map-out",
-            s(&map),
-            "--traj-out",
-            s(&traj),
-            "--assoc-out",
-            s(&assoc),
-        ]);
+        let (o, [map, traj, assoc]) = slam(&dir, &["--estimator", estimator]);
         assert!(
             o.status.success(),
             "{estimator}: {}",
@@ -237,7 +243,6 @@ fn a_config_file_is_checked_and_its_values_overridden() {
 #[test]
 fn the_graph_front_end_finds_itself_again_on_every_robot() {
     let Some(dataset) = dataset6() else { return };
-    let config = Path::new(env!("CARGO_MANIFEST_DIR")).join("configs/mrclam.toml");
     let dir = std::env::temp_dir().join(format!("cairn-reloc-{}", std::process::id()));
     for robot in 1..=5 {
         let _ = std::fs::remove_dir_all(&dir);
@@ -252,23 +257,7 @@ fn the_graph_front_end_finds_itself_again_on_every_robot() {
             s(&dir),
         ]);
         assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
-        let (map, traj, assoc) = (dir.join("m.csv"), dir.join("t.tum"), dir.join("a.csv"));
-        let o = cairn(&[
-            "fs-slam",
-            s(&dir.join("log.jsonl")),
-            "--config",
-            s(&config),
-            "--estimator",
-            "graph",
-            "--association",
-            "ml",
-            "--map-out",
-            s(&map),
-            "--traj-out",
-            s(&traj),
-            "--assoc-out",
-            s(&assoc),
-        ]);
+        let (o, [map, traj, assoc]) = slam(&dir, &["--estimator", "graph", "--association", "ml"]);
         let said = String::from_utf8_lossy(&o.stderr);
         assert!(o.status.success(), "robot {robot}: {said}");
         assert!(
