@@ -150,8 +150,7 @@ pub fn run(a: StudyArgs) -> Result<(), super::CliError> {
          The tracks are the first shared loop tracks in name order plus a random one: all of \
          them with 100 particles runs for hours, because EKF-SLAM's O(n²) update on \
          eufs_hairpins (about 1000 landmarks, 33 detections per scan) takes 107 s per run \
-         (FastSLAM 1.0 with JCBB and 30 particles there took 200 s before JCBB's joint test \
-         became incremental, 16 s now).\n",
+         (FastSLAM 1.0 with JCBB and 30 particles there 16 s).\n",
         a.seeds,
         a.random,
         a.max_tracks
