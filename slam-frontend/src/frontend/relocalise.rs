@@ -8,6 +8,7 @@
 //! recognises revisits from the landmarks themselves.
 
 use super::GraphSlam;
+use super::grid::Grid;
 use super::loop_closure::PendingScan;
 use crate::log::Detection;
 use cairn_core::SE2;
@@ -35,6 +36,13 @@ const MARGIN: f64 = 2.0;
 
 /// Corrections closer than this (m, or rad for the heading) are the same.
 const DISTINCT: (f64, f64) = (0.5, 0.1);
+
+/// Corrections tried per scan, at most, and the newest detections that
+/// score them: the search's work stays bounded (a few milliseconds) on a
+/// dense map and dense scans (a track's hundreds of cones, 30 per scan)
+/// whatever the drift.
+const MAX_TRIES: usize = 20_000;
+const MAX_POINTS: usize = 60;
 
 /// The pose covariance after a relocalisation: the fit's own accuracy.
 fn relocalised_cov() -> Matrix3<f64> {
@@ -139,24 +147,31 @@ impl GraphSlam {
     /// the best.
     fn best_fit(&self) -> Option<Fit> {
         let newest = self.poses.last().map_or(0.0, |p| p.t);
-        let points: Vec<Vector2<f64>> = self
+        // The newest detections first, then reversed so the newest scan's
+        // come last.
+        let mut points: Vec<Vector2<f64>> = self
             .lost_scans
             .iter()
-            .filter(|s| newest - self.poses[s.keyframe].t <= TOGETHER)
+            .rev()
+            .take_while(|s| newest - self.poses[s.keyframe].t <= TOGETHER)
             .flat_map(|s| {
                 let pose = self.poses[s.keyframe].pose;
                 s.cones
                     .iter()
+                    .rev()
                     .map(move |d| pose.transform_point(&d.position))
             })
+            .take(MAX_POINTS)
             .collect();
+        points.reverse();
         if points.len() < 3 {
             return None;
         }
-        // Pairs with a detection of the newest scan propose corrections (the
-        // older pairs proposed theirs already); all detections score them.
+        // Pairs with a detection of the newest scan propose corrections,
+        // which bounds the work per scan; every detection of the window
+        // scores them.
         let newest = self.lost_scans.last().map_or(0, |s| s.cones.len());
-        let first_new = points.len() - newest;
+        let first_new = points.len().saturating_sub(newest);
         let cov = self.drift.1;
         let information = super::nearest_information(&cov);
         let (max_turn, max_shift) = (
@@ -168,40 +183,52 @@ impl GraphSlam {
             .filter(|&l| self.in_map(l) && (self.landmarks[l].mean - self.pose.t).norm() < reach)
             .map(|l| self.landmarks[l].mean)
             .collect();
+        let near_map = Grid::new(map.clone(), AGREE);
+        let on_map = |w: &Vector2<f64>| near_map.first_near(w, AGREE, |_| true).is_some();
+        // Ordered pairs of landmarks by length, to find those as long as a
+        // pair of detections without trying every one.
+        let mut pairs: Vec<(f64, usize, usize)> = Vec::new();
+        for (j, ma) in map.iter().enumerate() {
+            for (k, mb) in map.iter().enumerate() {
+                if j != k {
+                    pairs.push(((mb - ma).norm(), j, k));
+                }
+            }
+        }
+        pairs.sort_by(|x, y| x.0.total_cmp(&y.0));
         let mut fits: Vec<Fit> = Vec::new();
-        for (i, a) in points.iter().enumerate() {
+        let mut tries = 0;
+        'search: for (i, a) in points.iter().enumerate() {
             for b in &points[(i + 1).max(first_new)..] {
                 let length = (b - a).norm();
                 if length < BASELINE {
                     continue;
                 }
-                for (j, ma) in map.iter().enumerate() {
-                    for (k, mb) in map.iter().enumerate() {
-                        if j == k || ((mb - ma).norm() - length).abs() > 2.0 * AGREE {
-                            continue;
-                        }
-                        let Some(correction) = two_point(a, b, ma, mb) else {
-                            continue;
-                        };
-                        let moved = correction.transform_point(&self.pose.t) - self.pose.t;
-                        if correction.theta.abs() > max_turn || moved.norm() > max_shift {
-                            continue;
-                        }
-                        let agreeing = points
-                            .iter()
-                            .filter(|p| {
-                                let w = correction.transform_point(p);
-                                map.iter().any(|m| (m - w).norm() < AGREE)
-                            })
-                            .count();
-                        let step = Vector3::new(moved.x, moved.y, correction.theta);
-                        let prior = step.dot(&(information * step));
-                        fits.push(Fit {
-                            correction,
-                            agreeing,
-                            score: agreeing as f64 - 0.5 * prior,
-                        });
+                let from = pairs.partition_point(|p| p.0 < length - 2.0 * AGREE);
+                let to = pairs.partition_point(|p| p.0 <= length + 2.0 * AGREE);
+                for &(_, j, k) in &pairs[from..to] {
+                    tries += 1;
+                    if tries > MAX_TRIES {
+                        break 'search;
                     }
+                    let Some(correction) = two_point(a, b, &map[j], &map[k]) else {
+                        continue;
+                    };
+                    let moved = correction.transform_point(&self.pose.t) - self.pose.t;
+                    if correction.theta.abs() > max_turn || moved.norm() > max_shift {
+                        continue;
+                    }
+                    let agreeing = points
+                        .iter()
+                        .filter(|p| on_map(&correction.transform_point(p)))
+                        .count();
+                    let step = Vector3::new(moved.x, moved.y, correction.theta);
+                    let prior = step.dot(&(information * step));
+                    fits.push(Fit {
+                        correction,
+                        agreeing,
+                        score: agreeing as f64 - 0.5 * prior,
+                    });
                 }
             }
         }
