@@ -213,16 +213,11 @@ impl Graph {
         robust_kernel: Option<&str>,
         robust_kernel_width: f64,
     ) -> PyResult<Summary> {
-        let algorithm = match solver {
-            "gn" => Algorithm::GaussNewton,
-            "lm" => Algorithm::LevenbergMarquardt,
-            "dogleg" => Algorithm::Dogleg,
-            _ => {
-                return Err(PyValueError::new_err(format!(
-                    "solver must be \"gn\", \"lm\" or \"dogleg\", got {solver:?}"
-                )));
-            }
-        };
+        let algorithm = Algorithm::by_short_name(solver).ok_or_else(|| {
+            PyValueError::new_err(format!(
+                "solver must be \"gn\", \"lm\" or \"dogleg\", got {solver:?}"
+            ))
+        })?;
         let start = initialization(init)?;
         if !(1..=MAX_ITERATIONS).contains(&max_iterations) {
             return Err(PyValueError::new_err(format!(
@@ -263,7 +258,7 @@ impl Graph {
             iterations: summary.iterations,
             termination: snake_case(&format!("{:?}", summary.termination)),
             converged: summary.termination.converged(),
-            init: init_name(used).to_string(),
+            init: used.name().to_string(),
             kept_start,
             time: summary.solve_time,
             trace: summary.trace,
@@ -412,28 +407,13 @@ fn snake_case(name: &str) -> String {
 }
 
 fn initialization(name: &str) -> PyResult<Initialization> {
-    Ok(match name {
-        "auto" => Initialization::Auto,
-        "file" => Initialization::File,
-        "chordal" => Initialization::Chordal,
-        "chordal-isotropic" => Initialization::ChordalIsotropic,
-        "spanning-tree" => Initialization::SpanningTree,
-        _ => {
-            return Err(PyValueError::new_err(format!(
-                "init must be \"auto\", \"file\", \"chordal\", \"chordal-isotropic\" or \"spanning-tree\", got {name:?}"
-            )));
-        }
+    Initialization::by_name(name).ok_or_else(|| {
+        let names: Vec<&str> = Initialization::ALL.iter().map(|i| i.name()).collect();
+        PyValueError::new_err(format!(
+            "init must be one of {}, got {name:?}",
+            names.join(", ")
+        ))
     })
-}
-
-fn init_name(init: Initialization) -> &'static str {
-    match init {
-        Initialization::Auto => "auto",
-        Initialization::File => "file",
-        Initialization::Chordal => "chordal",
-        Initialization::ChordalIsotropic => "chordal-isotropic",
-        Initialization::SpanningTree => "spanning-tree",
-    }
 }
 
 fn kernel(name: &str, width: f64) -> PyResult<RobustKernel> {

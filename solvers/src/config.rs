@@ -24,13 +24,20 @@ pub enum Algorithm {
 }
 
 impl Algorithm {
-    /// Short name (`gn`, `lm`).
+    /// Short name (`gn`, `lm`, `dogleg`).
     pub fn short_name(&self) -> &'static str {
         match self {
             Algorithm::GaussNewton => "gn",
             Algorithm::LevenbergMarquardt => "lm",
             Algorithm::Dogleg => "dogleg",
         }
+    }
+
+    /// The algorithm with this [`Algorithm::short_name`].
+    pub fn by_short_name(name: &str) -> Option<Self> {
+        [Self::GaussNewton, Self::LevenbergMarquardt, Self::Dogleg]
+            .into_iter()
+            .find(|a| a.short_name() == name)
     }
 }
 

@@ -29,6 +29,33 @@ pub enum Initialization {
     Auto,
 }
 
+impl Initialization {
+    /// Every start, in the order the command line lists them.
+    pub const ALL: [Initialization; 5] = [
+        Initialization::File,
+        Initialization::SpanningTree,
+        Initialization::Chordal,
+        Initialization::ChordalIsotropic,
+        Initialization::Auto,
+    ];
+
+    /// The name `cairn solve --init` and the Python package give it.
+    pub fn name(self) -> &'static str {
+        match self {
+            Initialization::File => "file",
+            Initialization::SpanningTree => "spanning-tree",
+            Initialization::Chordal => "chordal",
+            Initialization::ChordalIsotropic => "chordal-isotropic",
+            Initialization::Auto => "auto",
+        }
+    }
+
+    /// The start with this [`Initialization::name`].
+    pub fn by_name(name: &str) -> Option<Self> {
+        Self::ALL.into_iter().find(|i| i.name() == name)
+    }
+}
+
 /// Sets the free vertices' values by breadth-first spanning tree from the fixed
 /// and gauge vertices.
 pub fn spanning_tree_initialize(graph: &mut Graph) {

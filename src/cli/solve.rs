@@ -230,16 +230,6 @@ fn iteration_line(s: &IterationStats, edges: usize) -> String {
     line
 }
 
-fn start_name(init: Initialization) -> &'static str {
-    match init {
-        Initialization::File => "file",
-        Initialization::SpanningTree => "spanning-tree",
-        Initialization::Chordal => "chordal",
-        Initialization::ChordalIsotropic => "chordal-isotropic",
-        Initialization::Auto => "auto",
-    }
-}
-
 pub fn run(a: SolveArgs) -> Result<(), super::CliError> {
     if a.json && a.output.as_ref().is_some_and(|o| o.as_os_str() == "-") {
         return Err(CliError::usage(
@@ -357,7 +347,7 @@ fn solve(a: SolveArgs) -> Result<(), CliError> {
             eprintln!(
                 "{}\t start= {}",
                 iteration_line(s, edges),
-                start_name(start)
+                Initialization::name(start)
             );
         }
     })
@@ -417,7 +407,7 @@ fn solve(a: SolveArgs) -> Result<(), CliError> {
         eprintln!(
             "{} from {} start: {:?} after {} iterations: χ² {:.6} → {:.6}; load {:.3}s, solve {:.3}s{}{}",
             summary.algorithm.short_name(),
-            start_name(used),
+            Initialization::name(used),
             summary.termination,
             summary.iterations,
             summary.initial_chi2,
@@ -456,7 +446,7 @@ fn solve(a: SolveArgs) -> Result<(), CliError> {
             "load": report_json(&report),
             "summary": summary,
             "kept_start": kept_start,
-            "init": start_name(used),
+            "init": Initialization::name(used),
             "marginals": marginal_ids.iter().zip(&marginals).map(|(id, m)| serde_json::json!({
                 "vertex": id,
                 "covariance": m.row_iter().map(|r| r.iter().copied().collect::<Vec<f64>>()).collect::<Vec<_>>(),
