@@ -35,6 +35,9 @@ import time
 HERE = os.path.dirname(os.path.abspath(__file__))
 ROOT = os.path.dirname(HERE)
 PEERS_ALL = ["gtsam", "g2o", "apex", "tiny", "factrs"]
+# Cairn's runs: from the file under the peers' rule; the defaults; LM with
+# g2o's damping; GN under GTSAM's stopping rule.
+CAIRN_RUNS = ["cairn", "cairn-default", "cairn-g2o-lm", "cairn-stop"]
 ALGOS_ALL = ["gn", "lm", "dogleg"]
 
 
@@ -63,16 +66,20 @@ def run_peer(peers_dir, lib, algo, path, env, timeout):
     return json.loads(lines[-1])
 
 
-def run_cairn(cairn, algo, path, threads, env, timeout, scorer, repair=False, extra=()):
-    """One `cairn solve` (with `extra` arguments). A file whose information
-    matrices are indefinite (cubicle) is refused, and solved again with them
-    repaired; the harness scores the estimate with the file's own
-    information, as the peers'."""
+def run_cairn(cairn, algo, path, threads, env, timeout, scorer, repair=False, extra=(),
+              default=False):
+    """One `cairn solve` from the file under the peers' stopping rule (with
+    `extra` arguments), or with `default`, `cairn solve` with its default
+    options. A file whose information matrices are indefinite (cubicle) is
+    refused, and solved again with them repaired; the harness scores the
+    estimate with the file's own information, as the peers'."""
     with tempfile.TemporaryDirectory() as tmp:
         out = os.path.join(tmp, "out.g2o")
-        command = [cairn, "solve", path, "--init", "file", "--solver", algo, "-i", "100",
-                   "--relative-decrease", "1e-5", "--threads", str(threads), "--json", "-q",
-                   "-o", out] + (["--repair-information"] if repair else []) + list(extra)
+        options = [] if default else ["--init", "file", "--solver", algo, "-i", "100",
+                                      "--relative-decrease", "1e-5"]
+        command = [cairn, "solve", path] + options + [
+            "--threads", str(threads), "--json", "-q",
+            "-o", out] + (["--repair-information"] if repair else []) + list(extra)
         t0 = time.perf_counter()
         try:
             p = subprocess.run(command, capture_output=True, text=True, env=env, timeout=timeout)
@@ -81,14 +88,15 @@ def run_cairn(cairn, algo, path, threads, env, timeout, scorer, repair=False, ex
         wall = time.perf_counter() - t0
         if p.returncode != 0:
             if "not positive definite" in p.stderr and not repair:
-                return run_cairn(cairn, algo, path, threads, env, timeout, scorer, True, extra)
+                return run_cairn(cairn, algo, path, threads, env, timeout, scorer, True, extra,
+                                 default)
             return dict(status="error", error=p.stderr[-300:])
         d = json.loads(p.stdout)
         s = d["summary"]
         rec = dict(status="ok", iterations=s["iterations"], solve_s=d["solve_s"],
                    load_s=d["load_s"], write_s=d["write_s"], process_s=wall,
                    final_chi2=s["final_chi2"], phases=s["phases"], supernodal=s["supernodal"],
-                   repaired=repair)
+                   repaired=repair, init=d["init"])
         if scorer is not None:
             rec["common_chi2"] = scorer(path, out)
         return rec
@@ -143,6 +151,7 @@ def summarise(rows):
             chi2=good[-1]["common_chi2"],
             iterations=good[-1].get("iterations"),
             repaired=good[-1].get("repaired", False),
+            init=good[-1].get("init"),
             runs=len(good),
         )
     return table
@@ -199,6 +208,28 @@ def render(table, files, algos, peers):
     return "\n".join(lines)
 
 
+def render_same_lm(table, files):
+    """Levenberg-Marquardt, same algorithm: Cairn with g2o's damping
+    (`--damping levenberg`: λ₀ = 1e-5·max diag H, monotone, no look-ahead or
+    line search) against g2o's LM."""
+    lines = ["| dataset | Cairn (g2o damping) it | solve | χ² | g2o LM it | solve | χ² | ratio "
+             "| χ² ok |", "|---|---:|---:|---:|---:|---:|---:|---:|---|"]
+    for f in files:
+        c, g = table.get((f, "lm", "cairn-g2o-lm")), table.get((f, "lm", "g2o"))
+        if not c or c.get("solve_s") is None:
+            continue
+        name = f[:-4] + (" (repaired)" if c.get("repaired") else "")
+        cells = [name, str(c["iterations"]), fmt_time(c["solve_s"]), f"{c['chi2']:.6f}"]
+        if g and g.get("solve_s") is not None:
+            cells += [str(g["iterations"]), fmt_time(g["solve_s"]), f"{g['chi2']:.6f}",
+                      f"{c['solve_s'] / g['solve_s']:.2f}",
+                      "yes" if no_worse(c["chi2"], g["chi2"]) else "**no**"]
+        else:
+            cells += [(g or {}).get("status") or "–"] + ["–"] * 4
+        lines.append("| " + " | ".join(cells) + " |")
+    return "\n".join(lines)
+
+
 def render_stop_rule(table, files):
     """Cairn's GN under GTSAM's stopping rule (`--stop-on-increase`,
     library `cairn-stop`) against GTSAM's GN."""
@@ -234,6 +265,43 @@ def render_process(table, files):
         ratio = "–" if g2o_total is None else f"{c['process_s'] / g2o_total:.2f}"
         lines.append(f"| {f[:-4]} | {fmt_time(c['process_s'])} | {fmt_time(inner)} | "
                      f"{fmt_time(g2o_total)} | {ratio} |")
+    return "\n".join(lines)
+
+
+def render_default(table, files, peers):
+    """The headline: `cairn solve FILE` with its defaults and with `--init
+    file` (whole process: start, parse, solve, write) against each peer's
+    load + solve, GN or LM, whichever is faster."""
+    head = ["dataset", "Cairn default", "its χ² (start)", "Cairn --init file", "its χ²",
+            "fastest peer", "its χ²", "default ÷", "file ÷", "fastest peer as low", "default ÷"]
+    lines = ["| " + " | ".join(head) + " |", "|---|---:|---:|---:|---:|---|---:|---:|---:|---|---:|"]
+    for f in files:
+        d, c = table.get((f, "gn", "cairn-default")), table.get((f, "gn", "cairn"))
+        if not d or d.get("process_s") is None:
+            continue
+        runs = [(f"{p} {algo}", r["load_s"] + r["solve_s"], r["chi2"])
+                for p in peers for algo in ("gn", "lm")
+                for r in [table.get((f, algo, p), {})]
+                if r.get("solve_s") is not None and r.get("load_s") is not None]
+        fastest = min(runs, key=lambda x: x[1], default=None)
+        low = [x for x in runs if no_worse(x[2], d["chi2"])]
+        fastest_low = min(low, key=lambda x: x[1], default=None)
+        name = f[:-4] + (" (repaired)" if d.get("repaired") else "")
+        cells = [name, fmt_time(d["process_s"]), f"{d['chi2']:.6f} ({d.get('init', '?')})"]
+        file_s = c.get("process_s") if c else None
+        cells += [fmt_time(file_s), f"{c['chi2']:.6f}" if c and c.get("chi2") is not None else "–"]
+        if fastest:
+            cells += [f"{fastest[0]} {fmt_time(fastest[1])}", f"{fastest[2]:.6f}",
+                      f"{d['process_s'] / fastest[1]:.2f}",
+                      f"{file_s / fastest[1]:.2f}" if file_s else "–"]
+        else:
+            cells += ["–"] * 4
+        if fastest_low:
+            cells += [f"{fastest_low[0]} {fmt_time(fastest_low[1])}",
+                      f"{d['process_s'] / fastest_low[1]:.2f}"]
+        else:
+            cells += ["none", "–"]
+        lines.append("| " + " | ".join(cells) + " |")
     return "\n".join(lines)
 
 
@@ -324,7 +392,7 @@ def main():
     if a.render or a.replace:
         kept = [json.loads(line) for line in open(a.jsonl)]
         kept = [r for r in kept if a.render or r["file"] not in files or r["algo"] not in algos
-                or r["lib"] not in ["cairn", "cairn-stop"] + peers]
+                or r["lib"] not in CAIRN_RUNS + peers]
     # The peers run now, and the peers in the tables (those run now or kept).
     shown = [p for p in PEERS_ALL
              if (p in peers and not a.render) or any(r["lib"] == p for r in kept)]
@@ -338,8 +406,16 @@ def main():
             for algo in algos:
                 for rep in range(a.reps):
                     stop = ["cairn-stop"] if a.stop_rule and algo == "gn" else []
-                    for lib in ["cairn"] + stop + peers:
-                        if lib == "cairn":
+                    default = ["cairn-default"] if algo == "gn" else []
+                    g2o_lm = ["cairn-g2o-lm"] if algo == "lm" else []
+                    for lib in ["cairn"] + default + g2o_lm + stop + peers:
+                        if lib == "cairn-g2o-lm":
+                            rec = run_cairn(a.cairn, algo, path, a.threads, env, a.timeout, scorer,
+                                            extra=["--damping", "levenberg"])
+                        elif lib == "cairn-default":
+                            rec = run_cairn(a.cairn, algo, path, a.threads, env, a.timeout, scorer,
+                                            default=True)
+                        elif lib == "cairn":
                             rec = run_cairn(a.cairn, algo, path, a.threads, env, a.timeout, scorer)
                         elif lib == "cairn-stop":
                             rec = run_cairn(a.cairn, algo, path, a.threads, env, a.timeout, scorer,
@@ -359,14 +435,18 @@ def main():
     files = sorted({r["file"] for r in rows}, key=lambda f: os.path.getsize(os.path.join(data, f)))
     table = summarise(rows)
     algos = [x for x in ALGOS_ALL if any(r["algo"] == x for r in rows)]
+    headline = render_default(table, files, shown)
     suite = render(table, files, algos, shown)
     process = render_process(table, files)
     phases = render_phases(rows, files)
     stop_rule = render_stop_rule(table, files)
-    print(suite, stop_rule, process, phases, sep="\n\n")
+    same_lm = render_same_lm(table, files)
+    print(headline, suite, same_lm, stop_rule, process, phases, sep="\n\n")
     if a.doc:
+        write_section(a.doc, "default", headline)
         write_section(a.doc, "suite", suite)
         write_section(a.doc, "stop-rule", stop_rule)
+        write_section(a.doc, "same-lm", same_lm)
         write_section(a.doc, "process", process)
         write_section(a.doc, "phases", phases)
 

@@ -7,7 +7,8 @@ mod common;
 
 use cairn::g2o::{G2oError, ReadOptions, read_file};
 use cairn::solvers::{
-    Algorithm, Damping, LevenbergMarquardtConfig, SolverConfig, Termination, optimize,
+    Algorithm, Damping, Initialization, LevenbergMarquardtConfig, SolverConfig, Termination,
+    optimize,
 };
 
 /// Reference files, the MANIFEST's local minimum ("chi2 local min, chordal
@@ -41,6 +42,7 @@ fn check_reference(algorithm: Algorithm, lm: LevenbergMarquardtConfig) {
             SolverConfig {
                 algorithm,
                 lm,
+                init: Initialization::File,
                 ..Default::default()
             },
         )
@@ -163,6 +165,7 @@ fn solve_all_in(folder: &str) {
         assert_eq!(report.unknown_lines(), 0, "{name}: {:?}", report.unknown);
         let config = SolverConfig {
             algorithm: Algorithm::LevenbergMarquardt,
+            init: Initialization::File,
             ..Default::default()
         };
         let s = optimize(&mut graph, config).unwrap_or_else(|e| panic!("{name}: {e}"));
@@ -301,20 +304,15 @@ const HARD: [(&str, f64); 6] = [
 
 #[test]
 fn chordal_initialisation_reaches_the_best_known_minima() {
-    use cairn::solvers::{Initialization, optimize_from};
+    use cairn::solvers::optimize;
     let unverified = UNVERIFIED.iter().map(|&(f, m)| (f, m, false));
     for (file, minimum, exact) in HARD.iter().map(|&(f, m)| (f, m, true)).chain(unverified) {
         let Some(path) = common::dataset(file) else {
             return;
         };
         let (mut graph, _) = read_file(&path, &ReadOptions::default()).unwrap();
-        let (summary, used) = optimize_from(
-            &mut graph,
-            SolverConfig::default(),
-            Initialization::Auto,
-            &mut |_, _| {},
-        )
-        .unwrap();
+        let summary = optimize(&mut graph, SolverConfig::default()).unwrap();
+        let used = summary.init;
         let gap = (summary.final_chi2 - minimum) / minimum;
         eprintln!(
             "{file}: χ² {:.6} from the {used:?} start; best known {minimum}",
@@ -451,5 +449,42 @@ fn gauss_newton_keeps_the_rotation_of_large_se3_steps() {
                 s.final_chi2
             );
         }
+    }
+}
+
+/// The default start costs one run where Gauss-Newton converges quickly
+/// from the file's vertices: no chordal start is solved, and the minimum
+/// is the MANIFEST's.
+#[test]
+fn the_default_start_is_one_run_where_the_file_converges_quickly() {
+    use cairn::solvers::{AUTO_TRUSTED_ITERATIONS, Optimizer};
+    let cases = [
+        ("2d/city10000.g2o", 511.985164),
+        ("2d/ais2klinik.g2o", 172.815579),
+        ("2d/manhattanOlson3500.g2o", 146.076613),
+        ("3d/sphere2500.g2o", 727.149667),
+        ("3d/parking-garage.g2o", 1.238691),
+    ];
+    for (file, minimum) in cases {
+        let Some(path) = common::dataset(file) else {
+            return;
+        };
+        let (mut graph, _) = read_file(&path, &ReadOptions::default()).unwrap();
+        let mut optimizer = Optimizer::new(&graph, SolverConfig::default()).unwrap();
+        let mut iterations = 0;
+        let summary = optimizer
+            .optimize_with(&mut graph, &mut |s| {
+                assert_eq!(s.start, Initialization::File, "{file}");
+                iterations += 1;
+            })
+            .unwrap();
+        assert_eq!(summary.init, Initialization::File, "{file}");
+        assert_eq!(iterations, summary.iterations, "{file}");
+        assert!(summary.iterations <= AUTO_TRUSTED_ITERATIONS, "{file}");
+        assert!(
+            (summary.final_chi2 - minimum).abs() <= 1e-6 * minimum.max(1.0),
+            "{file}: χ² {} vs {minimum}",
+            summary.final_chi2
+        );
     }
 }

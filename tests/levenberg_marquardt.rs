@@ -67,7 +67,7 @@ fn look_ahead_runs(sigma_rotation: f64, seed: u64) -> [cairn::solvers::Summary; 
         ..Default::default()
     };
     let with = common::lm_config(5);
-    let mut without = with;
+    let mut without = with.clone();
     without.lm.lookahead_steps = 0;
     let gn = SolverConfig {
         algorithm: Algorithm::GaussNewton,
@@ -128,7 +128,7 @@ fn line_search_runs(sigma_rotation: f64, seed: u64) -> [cairn::solvers::Summary;
         ..Default::default()
     };
     let with = common::lm_config(5);
-    let mut without = with;
+    let mut without = with.clone();
     without.lm.line_search = false;
     [with, without].map(|config| optimize(&mut sphere(&options).unwrap(), config).unwrap())
 }

@@ -7,7 +7,7 @@
 use cairn_core::edges::{EdgeSE2, EdgeSE2XY};
 use cairn_core::{Graph, GraphError, RobustKernel, SE2};
 use cairn_slam::frontend::OptimiseError;
-use cairn_solvers::{Algorithm, Initialization, SolverConfig, Summary, optimize_from};
+use cairn_solvers::{Algorithm, Initialization, SolverConfig, Summary, optimize};
 use nalgebra::{Matrix2, Matrix3, Vector2};
 
 /// The Cauchy kernel's width on the sightings' χ² (as `cairn solve
@@ -63,9 +63,10 @@ impl Batch {
         let config = SolverConfig {
             algorithm: Algorithm::LevenbergMarquardt,
             max_iterations: iterations,
+            init,
             ..SolverConfig::default()
         };
-        let (summary, _) = optimize_from(&mut graph, config, init, &mut |_, _| {})?;
+        let summary = optimize(&mut graph, config)?;
         for (k, pose) in self.poses.iter_mut().enumerate() {
             *pose = graph.value::<SE2, 3>(k as i64)?;
         }

@@ -5,9 +5,7 @@ use crate::{g2o_error, graph_error, solve_error};
 use cairn_core::nalgebra::{Quaternion, UnitQuaternion, Vector2, Vector3};
 use cairn_core::{EdgePriorSE2, EdgeSE2, EdgeSE2XY, EdgeSE3, RobustKernel, SE2, SE3, VertexId};
 use cairn_g2o::ReadOptions;
-use cairn_solvers::{
-    Algorithm, Initialization, IterationStats, Optimizer, SolverConfig, StartPoint, optimize_from,
-};
+use cairn_solvers::{Algorithm, Initialization, IterationStats, Optimizer, SolverConfig, optimize};
 use numpy::PyArray2;
 use pyo3::exceptions::PyValueError;
 use pyo3::prelude::*;
@@ -231,6 +229,7 @@ impl Graph {
         let config = SolverConfig {
             algorithm,
             max_iterations,
+            init: start,
             ..SolverConfig::default()
         };
         let graph = &mut self.inner;
@@ -243,23 +242,21 @@ impl Graph {
                     graph.set_robust_kernel(k, kernel);
                 }
             }
-            let before = StartPoint::of(graph);
-            let solved = optimize_from(graph, config, start, &mut |_, _| {});
-            let kept_start = before.restore_if_better(graph);
+            let solved = optimize(graph, config);
             for (k, old) in own.into_iter().flatten().enumerate() {
                 graph.set_robust_kernel(k, old);
             }
-            solved.map(|(summary, used)| (summary, used, kept_start))
+            solved
         });
-        let (summary, used, kept_start) = solved.map_err(solve_error)?;
+        let summary = solved.map_err(solve_error)?;
         Ok(Summary {
             chi2_initial: summary.initial_chi2,
             chi2: summary.final_chi2,
             iterations: summary.iterations,
             termination: snake_case(&format!("{:?}", summary.termination)),
             converged: summary.termination.converged(),
-            init: used.name().to_string(),
-            kept_start,
+            init: summary.init.name().to_string(),
+            kept_start: summary.kept_start,
             time: summary.solve_time,
             trace: summary.trace,
         })

@@ -6,8 +6,9 @@
 //! Both steps are linear, so they are solved exactly by one Gauss-Newton step of
 //! Cairn's own solver on small auxiliary graphs.
 
-use crate::config::{Algorithm, SolverConfig};
-use crate::{SolveError, optimize};
+use crate::SolveError;
+use crate::config::{Algorithm, Gauge, Initialization, SolverConfig};
+use crate::optimizer::{Optimizer, gauge_indices};
 use cairn_core::{
     BinaryEdge, EdgePriorSE2, EdgeSE2, EdgeSE2XY, EdgeSE3, Graph, SE2, SE3, UnaryEdge, Variable,
     VertexId,
@@ -72,20 +73,29 @@ fn solve_linear(aux: &mut Graph) -> Result<(), SolveError> {
     let config = SolverConfig {
         algorithm: Algorithm::GaussNewton,
         max_iterations: 1,
+        init: Initialization::File,
         ..Default::default()
     };
-    optimize(aux, config).map(|_| ())
+    Optimizer::new(aux, config)?
+        .iterate(aux, Initialization::File, &mut |_| {})
+        .map(|_| ())
 }
 
-/// Vertices that keep their values: the fixed ones and the automatic gauge.
-fn anchors(graph: &Graph) -> Vec<bool> {
+/// Vertices that keep their values: the fixed ones and those `gauge` holds
+/// (the automatic gauge unless it names vertices: a start needs an anchor
+/// even where the priors fix the gauge).
+pub(crate) fn anchors(graph: &Graph, gauge: &Gauge) -> Result<Vec<bool>, SolveError> {
     let mut keep: Vec<bool> = (0..graph.num_vertices())
         .map(|v| graph.vertex(v).fixed)
         .collect();
-    for v in graph.gauge_indices(&graph.components()) {
+    let held = match gauge {
+        Gauge::Vertices(_) => gauge_indices(graph, gauge)?,
+        Gauge::Auto | Gauge::None => graph.gauge_indices(&graph.components()),
+    };
+    for v in held {
         keep[v] = true;
     }
-    keep
+    Ok(keep)
 }
 
 fn block<const R: usize, const C: usize>(
@@ -120,20 +130,29 @@ pub fn chordal_initialize_with(
     graph: &mut Graph,
     weights: ChordalWeights,
 ) -> Result<ChordalReport, SolveError> {
+    let keep = anchors(graph, &Gauge::Auto)?;
+    chordal_initialize_holding(graph, weights, &keep)
+}
+
+/// [`chordal_initialize_with`], holding the vertices marked in `keep`.
+pub(crate) fn chordal_initialize_holding(
+    graph: &mut Graph,
+    weights: ChordalWeights,
+    keep: &[bool],
+) -> Result<ChordalReport, SolveError> {
     let iso = weights == ChordalWeights::Isotropic;
     let mut report = ChordalReport::default();
-    let keep = anchors(graph);
     if graph
         .vertices()
         .any(|v| v.kind.type_id == TypeId::of::<SE2>())
     {
-        initialize_se2(graph, &keep, iso, &mut report)?;
+        initialize_se2(graph, keep, iso, &mut report)?;
     }
     if graph
         .vertices()
         .any(|v| v.kind.type_id == TypeId::of::<SE3>())
     {
-        initialize_se3(graph, &keep, iso, &mut report)?;
+        initialize_se3(graph, keep, iso, &mut report)?;
     }
     Ok(report)
 }

@@ -43,7 +43,7 @@ impl Algorithm {
 
 /// How the optimiser removes the gauge freedom (the rigid motion that
 /// changes no error) of the graph's connected components.
-#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize, Deserialize)]
+#[derive(Clone, Debug, Default, PartialEq, Eq, Serialize, Deserialize)]
 pub enum Gauge {
     /// Hold each component's lowest-id pose fixed, unless a fixed vertex or
     /// a full-rank prior already anchors the component.
@@ -52,9 +52,70 @@ pub enum Gauge {
     /// Hold only the graph's fixed vertices: for graphs whose priors fix
     /// the gauge together though none does alone (two position-only GPS
     /// priors, say). Where they do not, H is singular: Gauss-Newton and
-    /// dogleg end with [`Termination::NotPositiveDefinite`]. To hold other
-    /// vertices, fix them in the graph (`Graph::set_fixed`).
+    /// dogleg end with [`Termination::NotPositiveDefinite`].
     None,
+    /// Hold these vertex ids (besides the fixed ones) at their values, and
+    /// nothing else: to anchor a graph at a vertex of your choosing without
+    /// marking it fixed in the graph (or in the g2o file written from it).
+    Vertices(Vec<i64>),
+}
+
+/// Where the optimisation starts.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize, Deserialize)]
+pub enum Initialization {
+    /// The graph's current values (the file's vertices).
+    File,
+    /// Every free vertex predicted along a breadth-first spanning tree from the
+    /// fixed and gauge vertices (odometry chaining, for pose graphs).
+    SpanningTree,
+    /// Chordal relaxation of the rotations, then linear positions, weighted by
+    /// the information matrices.
+    Chordal,
+    /// The chordal relaxation with every measurement weighted alike.
+    ChordalIsotropic,
+    /// The graph's current values first, with a budget of
+    /// [`AUTO_TRUSTED_ITERATIONS`]: a run that converges within it is the
+    /// result. Otherwise both chordal starts are solved too (and, where
+    /// Gauss-Newton overshoots from one, Levenberg-Marquardt from it), and
+    /// the lowest final χ² is kept; if that is the current values' run, it
+    /// carries on to `max_iterations`.
+    #[default]
+    Auto,
+}
+
+/// Iterations within which a run from the graph's own values must converge
+/// for [`Initialization::Auto`] to take it without trying the chordal starts.
+/// From a start in its minimum's basin Gauss-Newton converges in a handful of
+/// steps (3–11 on the benchmark files where the file's values reach the best
+/// minimum); the runs that end in a worse minimum took 21 or more
+/// (docs/defaults.md).
+pub const AUTO_TRUSTED_ITERATIONS: usize = 10;
+
+impl Initialization {
+    /// Every start, in the order the command line lists them.
+    pub const ALL: [Initialization; 5] = [
+        Initialization::File,
+        Initialization::SpanningTree,
+        Initialization::Chordal,
+        Initialization::ChordalIsotropic,
+        Initialization::Auto,
+    ];
+
+    /// The name `cairn solve --init` and the Python package give it.
+    pub fn name(self) -> &'static str {
+        match self {
+            Initialization::File => "file",
+            Initialization::SpanningTree => "spanning-tree",
+            Initialization::Chordal => "chordal",
+            Initialization::ChordalIsotropic => "chordal-isotropic",
+            Initialization::Auto => "auto",
+        }
+    }
+
+    /// The start with this [`Initialization::name`].
+    pub fn by_name(name: &str) -> Option<Self> {
+        Self::ALL.into_iter().find(|i| i.name() == name)
+    }
 }
 
 /// How Levenberg-Marquardt damps the Hessian and picks its first λ.
@@ -179,7 +240,7 @@ impl Default for DoglegConfig {
 }
 
 /// Options of [`crate::Optimizer`].
-#[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 pub struct SolverConfig {
     /// GN or LM. Default GN.
     pub algorithm: Algorithm,
@@ -203,6 +264,12 @@ pub struct SolverConfig {
     /// Stop when the largest step component is below this × (1 + largest
     /// parameter). Default 1e-12.
     pub step_tolerance: f64,
+    /// Where each [`crate::Optimizer::optimize`] starts. Default
+    /// [`Initialization::Auto`], as `cairn solve`; [`Initialization::File`]
+    /// to iterate from the graph's current values (an estimator re-solving
+    /// a growing graph).
+    #[serde(default)]
+    pub init: Initialization,
     /// How the gauge is fixed. Default [`Gauge::Auto`].
     #[serde(default)]
     pub gauge: Gauge,
@@ -235,6 +302,7 @@ impl Default for SolverConfig {
             stop_on_increase: false,
             gradient_tolerance: 1e-10,
             step_tolerance: 1e-12,
+            init: Initialization::Auto,
             gauge: Gauge::Auto,
             lm: LevenbergMarquardtConfig::default(),
             dogleg: DoglegConfig::default(),
@@ -325,6 +393,10 @@ impl PhaseTimes {
 pub struct IterationStats {
     /// Iteration number, from 0.
     pub iteration: usize,
+    /// The start this run began from (one of several with
+    /// [`Initialization::Auto`]).
+    #[serde(default)]
+    pub start: Initialization,
     /// χ² after the iteration. For the step that ends GN with
     /// [`Termination::ErrorIncreased`], the χ² that step reached (the
     /// estimate returned is the one before it).
@@ -361,7 +433,18 @@ pub struct Summary {
     pub iterations: usize,
     /// Why it stopped.
     pub termination: Termination,
-    /// Vertex ids fixed automatically to remove the gauge freedom.
+    /// The start whose run gave the estimate the graph holds.
+    #[serde(default)]
+    pub init: Initialization,
+    /// Whether the run ended worse than the graph's values before it (χ²
+    /// NaN, or higher where χ² is the objective) and those values were put
+    /// back: an optimisation never replaces an estimate by a worse one.
+    /// `final_chi2` is then the kept values' χ², and the trace says where
+    /// the run ended.
+    #[serde(default)]
+    pub kept_start: bool,
+    /// Vertex ids held to remove the gauge freedom (automatic or
+    /// [`Gauge::Vertices`]).
     pub gauge: Vec<i64>,
     /// Number of connected components.
     pub components: usize,

@@ -43,16 +43,16 @@ mod test_matrices;
 
 pub use chordal::{ChordalReport, ChordalWeights, chordal_initialize, chordal_initialize_with};
 pub use config::{
-    Algorithm, Damping, DoglegConfig, Gauge, IterationStats, LevenbergMarquardtConfig, PhaseTimes,
-    SolverConfig, Summary, Termination,
+    AUTO_TRUSTED_ITERATIONS, Algorithm, Damping, DoglegConfig, Gauge, Initialization,
+    IterationStats, LevenbergMarquardtConfig, PhaseTimes, SolverConfig, Summary, Termination,
 };
 pub use hessian_layout::HessianLayout;
-pub use initialization::{Initialization, StartPoint, optimize_from, spanning_tree_initialize};
+pub use initialization::{optimize, spanning_tree_initialize};
 pub use linear::{
     Factorization, LinearSolverConfig, NotPositiveDefinite, Ordering, SparseCholesky,
 };
 pub use linear_system::LinearSystem;
-pub use optimizer::{Optimizer, optimize};
+pub use optimizer::Optimizer;
 pub use structure::HessianStructure;
 
 /// Why an optimisation could not run.

@@ -3,7 +3,8 @@
 use crate::SolveError;
 use crate::assembly::Assembly;
 use crate::config::{
-    Algorithm, Gauge, IterationStats, PhaseTimes, SolverConfig, Summary, Termination,
+    Algorithm, Gauge, Initialization, IterationStats, PhaseTimes, SolverConfig, Summary,
+    Termination,
 };
 use crate::linear::SparseCholesky;
 use crate::structure::HessianStructure;
@@ -88,6 +89,8 @@ pub struct Optimizer {
     damping: Vec<f64>,
     gradient: Vec<f64>,
     step: Vec<f64>,
+    /// H⁻¹g with the last factorisation, for Gauss-Newton's look ahead.
+    predicted: Vec<f64>,
     backup: Vec<f64>,
     free: Vec<usize>,
     gauge: Vec<VertexId>,
@@ -97,16 +100,14 @@ pub struct Optimizer {
 }
 
 impl Optimizer {
-    /// Builds the structure for `graph`: its FIX vertices are held constant, and
-    /// (with [`Gauge::Auto`], the default) each connected component without a
-    /// fixed vertex or full prior gets its lowest-id pose fixed too.
+    /// Builds the structure for `graph`: its FIX vertices are held constant,
+    /// and so is the gauge ([`SolverConfig::gauge`]: by default each
+    /// connected component without a fixed vertex or full prior gets its
+    /// lowest-id pose held).
     pub fn new(graph: &Graph, config: SolverConfig) -> Result<Self, SolveError> {
         let start = Instant::now();
         let components = graph.components();
-        let gauge_vertices = match config.gauge {
-            Gauge::Auto => graph.gauge_indices(&components),
-            Gauge::None => Vec::new(),
-        };
+        let gauge_vertices = gauge_indices(graph, &config.gauge)?;
         let mut fixed: Vec<bool> = (0..graph.num_vertices())
             .map(|v| graph.vertex(v).fixed)
             .collect();
@@ -131,6 +132,7 @@ impl Optimizer {
             damping: vec![0.0; structure.dim],
             gradient: vec![0.0; structure.dim],
             step: vec![0.0; structure.dim],
+            predicted: vec![0.0; structure.dim],
             backup: graph.values().params().to_vec(),
             free,
             gauge: gauge_vertices.iter().map(|&v| graph.vertex(v).id).collect(),
@@ -147,25 +149,30 @@ impl Optimizer {
         &self.config
     }
 
-    /// Changes the options that do not affect the structure (algorithm,
-    /// stopping rules, LM settings).
+    /// The options, to change those that do not affect the structure.
+    pub(crate) fn config_mut(&mut self) -> &mut SolverConfig {
+        &mut self.config
+    }
+
+    /// Changes the options that do not affect the structure (start,
+    /// algorithm, stopping rules, LM settings); the linear solver and the
+    /// gauge stay as built.
     pub fn set_config(&mut self, config: SolverConfig) {
+        let linear = self.config.linear;
+        let gauge = std::mem::take(&mut self.config.gauge);
         self.config = SolverConfig {
-            linear: self.config.linear,
+            linear,
+            gauge,
             ..config
         };
     }
 
-    /// Optimises the graph's values in place.
-    pub fn optimize(&mut self, graph: &mut Graph) -> Result<Summary, SolveError> {
-        self.optimize_with(graph, &mut |_| {})
-    }
-
-    /// Optimises, calling `on_iteration` after every iteration (for progress
-    /// output in g2o's style).
-    pub fn optimize_with(
+    /// One run of the configured algorithm from the graph's current values,
+    /// which it replaces; `start` names where those values came from.
+    pub(crate) fn iterate(
         &mut self,
         graph: &mut Graph,
+        start_point: Initialization,
         on_iteration: &mut dyn FnMut(&IterationStats),
     ) -> Result<Summary, SolveError> {
         if (graph.num_vertices(), graph.num_edges()) != self.shape {
@@ -183,6 +190,8 @@ impl Optimizer {
             final_chi2: chi2,
             iterations: 0,
             termination: Termination::MaxIterations,
+            init: start_point,
+            kept_start: false,
             gauge: self.gauge.clone(),
             components: self.components,
             dimension: self.structure.dim,
@@ -486,6 +495,7 @@ fn record(
 ) {
     stats.time = since(began);
     stats.cumulative_time = since(start);
+    stats.start = summary.init;
     on_iteration(&stats);
     summary.trace.push(stats);
 }
@@ -508,7 +518,14 @@ fn non_finite_edge(graph: &Graph) -> SolveError {
     }
 }
 
-/// Optimises `graph` with `config` (a one-shot [`Optimizer`]).
-pub fn optimize(graph: &mut Graph, config: SolverConfig) -> Result<Summary, SolveError> {
-    Optimizer::new(graph, config)?.optimize(graph)
+/// The vertex indices [`Gauge`] holds in `graph`.
+pub(crate) fn gauge_indices(graph: &Graph, gauge: &Gauge) -> Result<Vec<usize>, SolveError> {
+    match gauge {
+        Gauge::Auto => Ok(graph.gauge_indices(&graph.components())),
+        Gauge::None => Ok(Vec::new()),
+        Gauge::Vertices(ids) => ids
+            .iter()
+            .map(|&id| graph.vertex_index(id).ok_or(SolveError::UnknownVertex(id)))
+            .collect(),
+    }
 }

@@ -78,7 +78,7 @@ fn gauge_none_leaves_two_gps_fixes_to_hold_the_graph() {
         gauge: cairn_solvers::Gauge::None,
         ..config(Algorithm::GaussNewton)
     };
-    let s = optimize(&mut g, free).unwrap();
+    let s = optimize(&mut g, free.clone()).unwrap();
     assert!(s.gauge.is_empty());
     assert!(s.final_chi2 < 1e-12, "{}", s.final_chi2);
     let x0: SE2 = g.value(0).unwrap();
@@ -88,8 +88,31 @@ fn gauge_none_leaves_two_gps_fixes_to_hold_the_graph() {
     one.add_vertex(0, SE2::new(0.3, 0.2, 0.0)).unwrap();
     one.add_unary_edge(0, Gps(Vector2::new(0.0, 0.0)), Matrix2::identity())
         .unwrap();
-    let s = optimize(&mut one, free).unwrap();
+    let s = optimize(&mut one, free.clone()).unwrap();
     assert_eq!(s.termination, Termination::NotPositiveDefinite);
+    // Named vertices hold instead of the automatic choice: pose 1 keeps the
+    // value it was given, not marked fixed, and pose 0 moves towards its fix.
+    let mut held = auto.clone();
+    held.set_value(1, &SE2::new(1.5, 0.5, 0.0)).unwrap();
+    let at_one = SolverConfig {
+        gauge: cairn_solvers::Gauge::Vertices(vec![1]),
+        ..free.clone()
+    };
+    let s = optimize(&mut held, at_one).unwrap();
+    assert_eq!(s.gauge, vec![1]);
+    assert!(!held.is_fixed(1).unwrap());
+    let x1: SE2 = held.value(1).unwrap();
+    assert_eq!((x1.t.x, x1.t.y, x1.theta), (1.5, 0.5, 0.0));
+    let x0: SE2 = held.value(0).unwrap();
+    assert!((x0.t - Vector2::new(0.5, 0.5)).norm() > 0.05, "{x0:?}");
+    let nowhere = SolverConfig {
+        gauge: cairn_solvers::Gauge::Vertices(vec![7]),
+        ..free
+    };
+    assert_eq!(
+        optimize(&mut held, nowhere).unwrap_err(),
+        cairn_solvers::SolveError::UnknownVertex(7)
+    );
 }
 
 /// The graph's API speaks ids: the gauge it picks and whether a vertex is

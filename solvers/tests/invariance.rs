@@ -3,7 +3,7 @@
 
 use cairn_core::nalgebra::{Matrix2, Matrix3, Vector2, Vector3};
 use cairn_core::{EdgeSE2, EdgeSE2XY, Graph, SE2};
-use cairn_solvers::{Algorithm, Initialization, SolverConfig, optimize_from};
+use cairn_solvers::{Algorithm, Initialization, SolverConfig, optimize};
 use proptest::prelude::*;
 use rand::rngs::StdRng;
 use rand::seq::SliceRandom;
@@ -120,9 +120,10 @@ fn solve(
 ) -> (f64, Vec<f64>) {
     let config = SolverConfig {
         algorithm,
+        init,
         ..Default::default()
     };
-    let (summary, _) = optimize_from(g, config, init, &mut |_, _| {}).unwrap();
+    let summary = optimize(g, config).unwrap();
     let mut estimate = Vec::new();
     for (k, &id) in ids.iter().enumerate() {
         if k < p.poses.len() {

@@ -214,6 +214,7 @@ fn the_hessian_solves_to_the_first_gauss_newton_step() {
     let config = SolverConfig {
         algorithm: Algorithm::GaussNewton,
         max_iterations: 1,
+        init: cairn_solvers::Initialization::File,
         ..Default::default()
     };
     Optimizer::new(&graph, config)

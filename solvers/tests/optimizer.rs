@@ -9,9 +9,11 @@ use nalgebra::{Matrix1, Matrix2, Matrix3, Vector1, Vector2};
 use rand::rngs::StdRng;
 use rand::{Rng, SeedableRng};
 
+/// `algorithm` from the graph's own values.
 fn config(algorithm: Algorithm) -> SolverConfig {
     SolverConfig {
         algorithm,
+        init: cairn_solvers::Initialization::File,
         ..Default::default()
     }
 }
@@ -134,7 +136,7 @@ fn a_singular_hessian_ends_gn_and_is_damped_by_lm_and_dogleg() {
     };
     for config in [levenberg, config(Algorithm::Dogleg)] {
         let mut g = build();
-        let s = optimize(&mut g, config).unwrap();
+        let s = optimize(&mut g, config.clone()).unwrap();
         let algorithm = config.algorithm;
         assert!(
             s.termination.converged(),
@@ -469,7 +471,7 @@ fn gn_asked_to_stop_on_a_rise_ignores_rounding_at_the_optimum() {
             gradient_tolerance: 0.0,
             ..config(Algorithm::GaussNewton)
         };
-        let again = optimize(&mut solved(), plain).unwrap();
+        let again = optimize(&mut solved(), plain.clone()).unwrap();
         rises += usize::from(again.trace[0].chi2 > again.initial_chi2);
         let cfg = SolverConfig {
             stop_on_increase: true,
@@ -577,4 +579,54 @@ fn chordal_initialisation_recovers_noise_free_graphs_exactly() {
         chordal_initialize_with(&mut g, weights).unwrap();
         assert!(g.chi2() < 1e-16, "χ² {}", g.chi2());
     }
+}
+
+/// Gauss-Newton stops without the last factorisation once the model
+/// predicts a step that lowers χ² by less than a hundredth of the
+/// tolerance: it ends within that of the χ² reached by iterating until the
+/// gradient vanishes.
+#[test]
+fn gauss_newton_skips_a_negligible_last_step() {
+    let tolerance = 1e-5;
+    let mut skipped = 0;
+    for seed in 0..10 {
+        // A loop whose measurements disagree: χ² stays well above 0.
+        let mut g = noisy_loop(60, seed);
+        let mut rng = StdRng::seed_from_u64(seed);
+        let info = Matrix3::from_diagonal(&nalgebra::Vector3::new(100.0, 100.0, 1000.0));
+        for i in 0..60 {
+            let z = SE2::new(
+                1.0 + rng.random_range(-0.1..0.1),
+                rng.random_range(-0.1..0.1),
+                0.1 + rng.random_range(-0.05..0.05),
+            );
+            g.add_edge(i, (i + 2) % 60, EdgeSE2::new(z), info).unwrap();
+        }
+        let mut h = g.clone();
+        let stopping = SolverConfig {
+            relative_decrease: tolerance,
+            ..config(Algorithm::GaussNewton)
+        };
+        let stopped = optimize(&mut g, stopping).unwrap();
+        let exhaustive = SolverConfig {
+            relative_decrease: 0.0,
+            ..config(Algorithm::GaussNewton)
+        };
+        let full = optimize(&mut h, exhaustive).unwrap();
+        let gap = (stopped.final_chi2 - full.final_chi2) / full.final_chi2;
+        assert!(
+            (0.0..=2.0 * tolerance / 100.0).contains(&gap),
+            "seed {seed}: {gap}"
+        );
+        // Skipped: it stopped though χ² fell by more than the tolerance.
+        let chi2: Vec<f64> = std::iter::once(stopped.initial_chi2)
+            .chain(stopped.trace.iter().map(|t| t.chi2))
+            .collect();
+        let last = (chi2[chi2.len() - 2] - stopped.final_chi2) / stopped.final_chi2;
+        if stopped.termination == Termination::RelativeDecrease && last >= tolerance {
+            skipped += 1;
+            assert!(stopped.iterations < full.iterations, "seed {seed}");
+        }
+    }
+    assert!(skipped > 0, "the look ahead never saved a factorisation");
 }

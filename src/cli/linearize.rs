@@ -3,9 +3,7 @@
 
 use super::solve::OrderingName;
 use super::write_output;
-use cairn::solvers::{
-    Initialization, LinearSolverConfig, LinearSystem, Optimizer, SolverConfig, optimize_from,
-};
+use cairn::solvers::{LinearSolverConfig, LinearSystem, Optimizer, SolverConfig, optimize};
 use clap::{Args, ValueEnum};
 use sprs::CsMat;
 use std::fmt::Write as _;
@@ -62,13 +60,8 @@ pub fn run(a: LinearizeArgs) -> Result<(), super::CliError> {
     let (mut graph, _) = cairn::g2o::read_bytes(&super::read_input(&a.file)?, &Default::default())
         .map_err(super::bad_input(&name))?;
     if a.at_solution {
-        let (summary, _) = optimize_from(
-            &mut graph,
-            SolverConfig::default(),
-            Initialization::Auto,
-            &mut |_, _| {},
-        )
-        .map_err(|e| format!("{name}: {e}"))?;
+        let summary =
+            optimize(&mut graph, SolverConfig::default()).map_err(|e| format!("{name}: {e}"))?;
         eprintln!(
             "solved: χ² {:.6} → {:.6}",
             summary.initial_chi2, summary.final_chi2

@@ -9,7 +9,7 @@ use cairn::core::RobustKernel;
 use cairn::g2o::ReadOptions;
 use cairn::solvers::{
     Algorithm, Factorization, Initialization, IterationStats, LevenbergMarquardtConfig,
-    LinearSolverConfig, Optimizer, Ordering, SolverConfig, StartPoint, optimize_from,
+    LinearSolverConfig, Optimizer, Ordering, SolverConfig,
 };
 use clap::{Args, ValueEnum};
 use std::fmt::Write as _;
@@ -45,7 +45,7 @@ enum InitName {
     Chordal,
     /// Chordal relaxation with every measurement weighted alike.
     ChordalIsotropic,
-    /// Solve from the file's vertices and both chordal starts; keep the lowest χ².
+    /// The file's vertices; if that run has not converged within 10 iterations, both chordal starts too, keeping the lowest χ²
     Auto,
 }
 
@@ -304,6 +304,13 @@ fn solve(a: SolveArgs) -> Result<(), CliError> {
         ));
     }
     let config = SolverConfig {
+        init: match a.init {
+            InitName::File => Initialization::File,
+            InitName::SpanningTree => Initialization::SpanningTree,
+            InitName::Chordal => Initialization::Chordal,
+            InitName::ChordalIsotropic => Initialization::ChordalIsotropic,
+            InitName::Auto => Initialization::Auto,
+        },
         algorithm: match a.solver {
             SolverName::Gn => Algorithm::GaussNewton,
             SolverName::Lm => Algorithm::LevenbergMarquardt,
@@ -331,27 +338,17 @@ fn solve(a: SolveArgs) -> Result<(), CliError> {
         ..Default::default()
     };
     let t = Instant::now();
-    let init = match a.init {
-        InitName::File => Initialization::File,
-        InitName::SpanningTree => Initialization::SpanningTree,
-        InitName::Chordal => Initialization::Chordal,
-        InitName::ChordalIsotropic => Initialization::ChordalIsotropic,
-        InitName::Auto => Initialization::Auto,
-    };
     let quiet = a.quiet;
-    // A solve that ends above where the file started (Gauss-Newton through
-    // an indefinite H, say) must not replace the file's estimate silently.
-    let start = StartPoint::of(&graph);
-    let (summary, used) = optimize_from(&mut graph, config, init, &mut |start, s| {
-        if !quiet {
-            eprintln!(
-                "{}\t start= {}",
-                iteration_line(s, edges),
-                Initialization::name(start)
-            );
-        }
-    })
-    .map_err(|e| format!("{name}: {e}"))?;
+    // The optimizer never replaces the file's estimate by a worse one
+    // (Gauss-Newton through an indefinite H, say): it keeps the start.
+    let mut optimizer = Optimizer::new(&graph, config).map_err(|e| format!("{name}: {e}"))?;
+    let summary = optimizer
+        .optimize_with(&mut graph, &mut |s| {
+            if !quiet {
+                eprintln!("{}\t start= {}", iteration_line(s, edges), s.start.name());
+            }
+        })
+        .map_err(|e| format!("{name}: {e}"))?;
     let solve = t.elapsed().as_secs_f64();
     if summary.returned_lowest {
         eprintln!(
@@ -360,14 +357,12 @@ fn solve(a: SolveArgs) -> Result<(), CliError> {
             summary.termination, summary.final_chi2
         );
     }
-    let kept_start = start.restore_if_better(&mut graph);
-    if kept_start {
+    if summary.kept_start {
+        let ended = summary.trace.last().map_or(f64::NAN, |s| s.chi2);
         eprintln!(
-            "warning: {name}: the solve ended at χ² {:.6e} ({:?}), above the file's {:.6e}; \
+            "warning: {name}: the solve ended at χ² {ended:.6e} ({:?}), above the file's {:.6e}; \
              the file's estimate is kept",
-            summary.final_chi2,
-            summary.termination,
-            start.chi2()
+            summary.termination, summary.final_chi2
         );
     }
 
@@ -375,8 +370,8 @@ fn solve(a: SolveArgs) -> Result<(), CliError> {
     let marginals = if marginal_ids.is_empty() {
         Ok(Vec::new())
     } else {
-        Optimizer::new(&graph, config)
-            .and_then(|mut optimizer| optimizer.marginals(&graph, &marginal_ids))
+        optimizer
+            .marginals(&graph, &marginal_ids)
             .map_err(|e| format!("--marginals: {e}"))
     };
 
@@ -407,7 +402,7 @@ fn solve(a: SolveArgs) -> Result<(), CliError> {
         eprintln!(
             "{} from {} start: {:?} after {} iterations: χ² {:.6} → {:.6}; load {:.3}s, solve {:.3}s{}{}",
             summary.algorithm.short_name(),
-            Initialization::name(used),
+            summary.init.name(),
             summary.termination,
             summary.iterations,
             summary.initial_chi2,
@@ -445,8 +440,8 @@ fn solve(a: SolveArgs) -> Result<(), CliError> {
             "edges": edges,
             "load": report_json(&report),
             "summary": summary,
-            "kept_start": kept_start,
-            "init": Initialization::name(used),
+            "kept_start": summary.kept_start,
+            "init": summary.init.name(),
             "marginals": marginal_ids.iter().zip(&marginals).map(|(id, m)| serde_json::json!({
                 "vertex": id,
                 "covariance": m.row_iter().map(|r| r.iter().copied().collect::<Vec<f64>>()).collect::<Vec<_>>(),

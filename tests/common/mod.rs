@@ -51,11 +51,13 @@ pub fn g2o_baseline(file: &str, algo: &str) -> Option<(f64, usize)> {
         })
 }
 
-/// Levenberg-Marquardt with the default options but `nonmonotonic_steps`.
+/// Levenberg-Marquardt from the file with the default options but
+/// `nonmonotonic_steps`.
 pub fn lm_config(nonmonotonic_steps: usize) -> cairn::solvers::SolverConfig {
-    use cairn::solvers::{Algorithm, LevenbergMarquardtConfig, SolverConfig};
+    use cairn::solvers::{Algorithm, Initialization, LevenbergMarquardtConfig, SolverConfig};
     SolverConfig {
         algorithm: Algorithm::LevenbergMarquardt,
+        init: Initialization::File,
         lm: LevenbergMarquardtConfig {
             nonmonotonic_steps,
             ..Default::default()

@@ -5,7 +5,7 @@
 use super::bias::{OdometryBias, PoseBias, SightingBias, StartPrior};
 use super::{GraphSlam, Observation, OdometryEdge, OptimiseError};
 use cairn_core::{EdgeSE2XY, Graph, RobustKernel, SE2};
-use cairn_solvers::{Optimizer, SolverConfig};
+use cairn_solvers::{Initialization, Optimizer, SolverConfig};
 use nalgebra::Vector2;
 use std::collections::HashMap;
 
@@ -72,6 +72,7 @@ impl GraphSlam {
         let mut config = SolverConfig {
             max_iterations: batch.iterations,
             relative_decrease: 1e-3,
+            init: Initialization::File,
             ..SolverConfig::default()
         };
         // Landmarks seen from many poses give dense fronts; faer's automatic
@@ -85,7 +86,7 @@ impl GraphSlam {
             let last = graph.value::<PoseBias, 4>(n as i64 - 1)?.pose;
             let shift = self.poses[n - 1].pose.inverse().compose(&last);
             if shift.t.norm() > FAR.0 || shift.theta.abs() > FAR.1 {
-                let mut config = *optimizer.config();
+                let mut config = optimizer.config().clone();
                 config.max_iterations = batch.far_iterations - batch.iterations;
                 optimizer.set_config(config);
                 optimizer.optimize(&mut graph)?;

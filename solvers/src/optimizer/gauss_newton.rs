@@ -1,7 +1,7 @@
 //! Gauss-Newton: the full step from the same linear system as the others,
 //! returning the lowest-χ² iterate.
 
-use super::{Pending, max_abs, record, since};
+use super::{Pending, dot, max_abs, record, since};
 use crate::config::{IterationStats, PhaseTimes, Summary, Termination};
 use crate::optimizer::Optimizer;
 use cairn_core::Graph;
@@ -77,12 +77,39 @@ impl Optimizer {
                 {
                     break 'run end;
                 }
+                if self.next_step_is_negligible(chi2, new_chi2) {
+                    break 'run Termination::RelativeDecrease;
+                }
                 chi2 = new_chi2;
             }
             Termination::MaxIterations
         };
         self.return_lowest(graph, summary, &lowest, lowest_chi2);
         termination
+    }
+
+    /// Whether the next Gauss-Newton step can be skipped: once χ² fell from
+    /// `old_chi2` to `new_chi2` by less than √`relative_decrease` (the
+    /// iterates converge quadratically there), the step the last
+    /// factorisation gives from the new gradient, δ = −H⁻¹g, is predicted
+    /// to lower χ² by gᵀH⁻¹g; below a hundredth of `relative_decrease` that
+    /// step would change χ² by less than the rounding of its reports, and a
+    /// factorisation is saved.
+    fn next_step_is_negligible(&mut self, old_chi2: f64, new_chi2: f64) -> bool {
+        let decrease = (old_chi2 - new_chi2) / old_chi2;
+        let tolerance = self.config.relative_decrease;
+        if !(0.0..tolerance.sqrt()).contains(&decrease) {
+            return false;
+        }
+        let Some(cholesky) = self.cholesky.as_mut() else {
+            return false;
+        };
+        self.predicted.copy_from_slice(&self.gradient);
+        if !cholesky.solve_in_place(&mut self.predicted) {
+            return false;
+        }
+        let predicted = dot(&self.gradient, &self.predicted);
+        (0.0..tolerance / 100.0 * new_chi2).contains(&predicted)
     }
 
     /// Puts the graph back at the `lowest`-χ² estimate met if the solve
