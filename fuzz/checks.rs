@@ -19,6 +19,7 @@ pub fn g2o_reader(data: &[u8]) {
     };
     let options = ReadOptions {
         repair_information: flags & 1 == 1,
+        ..Default::default()
     };
     let Ok((graph, _)) = cairn_g2o::read_bytes(text, &options) else {
         return;

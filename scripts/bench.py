@@ -251,23 +251,6 @@ def render_stop_rule(table, files):
     return "\n".join(lines)
 
 
-def render_process(table, files):
-    """Whole `cairn solve` process (parse + solve + write), GN, against g2o's
-    load + solve."""
-    lines = ["| dataset | Cairn process | Cairn load + solve + write | g2o load + solve | ratio |",
-             "|---|---:|---:|---:|---:|"]
-    for f in files:
-        c, g = table.get((f, "gn", "cairn")), table.get((f, "gn", "g2o"))
-        if not c or c.get("process_s") is None:
-            continue
-        g2o_total = g["load_s"] + g["solve_s"] if g and g.get("solve_s") is not None else None
-        inner = c["load_s"] + c["solve_s"]
-        ratio = "–" if g2o_total is None else f"{c['process_s'] / g2o_total:.2f}"
-        lines.append(f"| {f[:-4]} | {fmt_time(c['process_s'])} | {fmt_time(inner)} | "
-                     f"{fmt_time(g2o_total)} | {ratio} |")
-    return "\n".join(lines)
-
-
 def render_default(table, files, peers):
     """The headline: `cairn solve FILE` with its defaults and with `--init
     file` (whole process: start, parse, solve, write) against each peer's
@@ -437,17 +420,15 @@ def main():
     algos = [x for x in ALGOS_ALL if any(r["algo"] == x for r in rows)]
     headline = render_default(table, files, shown)
     suite = render(table, files, algos, shown)
-    process = render_process(table, files)
     phases = render_phases(rows, files)
     stop_rule = render_stop_rule(table, files)
     same_lm = render_same_lm(table, files)
-    print(headline, suite, same_lm, stop_rule, process, phases, sep="\n\n")
+    print(headline, suite, same_lm, stop_rule, phases, sep="\n\n")
     if a.doc:
         write_section(a.doc, "default", headline)
         write_section(a.doc, "suite", suite)
         write_section(a.doc, "stop-rule", stop_rule)
         write_section(a.doc, "same-lm", same_lm)
-        write_section(a.doc, "process", process)
         write_section(a.doc, "phases", phases)
 
 

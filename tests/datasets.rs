@@ -158,6 +158,7 @@ fn solve_all_in(folder: &str) {
             &path,
             &ReadOptions {
                 repair_information: repair,
+                ..Default::default()
             },
         )
         .unwrap_or_else(|e| panic!("{name}: {e}"));
@@ -220,6 +221,7 @@ fn cubicle_is_refused_until_repaired() {
         &path,
         &ReadOptions {
             repair_information: true,
+            ..Default::default()
         },
     )
     .unwrap();
@@ -259,6 +261,7 @@ fn every_file_round_trips_exactly() {
             let path = entry.unwrap().path();
             let opts = ReadOptions {
                 repair_information: true,
+                ..Default::default()
             };
             let Ok((a, _)) = read_file(&path, &opts) else {
                 panic!("{}", path.display())

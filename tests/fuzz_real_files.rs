@@ -76,6 +76,7 @@ fn mutated_real_files_never_panic() {
                         mutated.as_bytes(),
                         &ReadOptions {
                             repair_information: repair,
+                            ..Default::default()
                         },
                     ) {
                         for algorithm in [Algorithm::GaussNewton, Algorithm::LevenbergMarquardt] {

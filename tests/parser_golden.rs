@@ -126,6 +126,7 @@ fn test_se2_has_an_indefinite_information_matrix() {
         &path,
         &ReadOptions {
             repair_information: true,
+            ..Default::default()
         },
     )
     .unwrap();
@@ -143,6 +144,7 @@ fn test_se3_mixes_se3_poses_and_xy_points() {
         &path,
         &ReadOptions {
             repair_information: true,
+            ..Default::default()
         },
     )
     .unwrap();

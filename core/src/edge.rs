@@ -110,6 +110,65 @@ pub trait BinaryEdge<const E: usize, const D1: usize, const D2: usize>:
     }
 }
 
+/// An edge on one variable given by its error alone: its dimensions come
+/// from the variable's type, and its Jacobian is numeric. Every such type
+/// is a [`UnaryEdge`]; implement `UnaryEdge` instead for an analytic
+/// Jacobian.
+pub trait NumericUnaryEdge<const E: usize>: Clone + Send + Sync + 'static {
+    /// The variable type.
+    type V;
+    /// Name for messages.
+    const NAME: &'static str;
+
+    /// The error vector e(x).
+    fn error(&self, x: &Self::V) -> SVector<f64, E>;
+}
+
+impl<T, const E: usize, const D: usize> UnaryEdge<E, D> for T
+where
+    T: NumericUnaryEdge<E>,
+    T::V: Variable<D>,
+{
+    type V = T::V;
+    const NAME: &'static str = <T as NumericUnaryEdge<E>>::NAME;
+
+    fn error(&self, x: &Self::V) -> SVector<f64, E> {
+        NumericUnaryEdge::error(self, x)
+    }
+}
+
+/// An edge between two variables given by its error alone: its dimensions
+/// come from the variables' types (`impl NumericBinaryEdge<1> for Range {
+/// type V1 = SE2; type V2 = Vector2<f64>; … }`), and its Jacobians are
+/// numeric. Every such type is a [`BinaryEdge`]; implement `BinaryEdge`
+/// instead for analytic Jacobians, whose sizes name the dimensions.
+pub trait NumericBinaryEdge<const E: usize>: Clone + Send + Sync + 'static {
+    /// The first variable's type.
+    type V1;
+    /// The second variable's type.
+    type V2;
+    /// Name for messages.
+    const NAME: &'static str;
+
+    /// The error vector e(x1, x2).
+    fn error(&self, x1: &Self::V1, x2: &Self::V2) -> SVector<f64, E>;
+}
+
+impl<T, const E: usize, const D1: usize, const D2: usize> BinaryEdge<E, D1, D2> for T
+where
+    T: NumericBinaryEdge<E>,
+    T::V1: Variable<D1>,
+    T::V2: Variable<D2>,
+{
+    type V1 = T::V1;
+    type V2 = T::V2;
+    const NAME: &'static str = <T as NumericBinaryEdge<E>>::NAME;
+
+    fn error(&self, x1: &Self::V1, x2: &Self::V2) -> SVector<f64, E> {
+        NumericBinaryEdge::error(self, x1, x2)
+    }
+}
+
 /// Central-difference Jacobian of a function of one variable.
 pub fn numeric_jacobian<V, const E: usize, const D: usize>(
     x: &V,

@@ -37,7 +37,9 @@ pub mod values;
 pub mod variable;
 
 pub use disjoint::DisjointSets;
-pub use edge::{BinaryEdge, Linearized, NormalBlocks, UnaryEdge};
+pub use edge::{
+    BinaryEdge, Linearized, NormalBlocks, NumericBinaryEdge, NumericUnaryEdge, UnaryEdge,
+};
 pub use edges::{EdgePriorSE2, EdgeSE2, EdgeSE2XY, EdgeSE3};
 pub use factor::FactorGroup;
 pub use graph::{EdgeView, Graph, GraphError, VariableKind, VertexId, VertexView};

@@ -61,6 +61,14 @@ pub enum LineError {
         /// The text.
         text: String,
     },
+    /// A registered edge type refused the measurement.
+    #[error("{tag}: {message}")]
+    BadMeasurement {
+        /// The record's tag.
+        tag: String,
+        /// Why, in the edge type's words.
+        message: String,
+    },
     /// A quaternion of zero length.
     #[error("the quaternion has zero length")]
     ZeroQuaternion,

@@ -6,6 +6,8 @@
 //! blank lines and runs of spaces are allowed; unknown tags are counted in the
 //! [`LoadReport`] and skipped. Files without VERTEX lines get their vertices
 //! from the edges, initialised by a spanning tree from the gauge vertex.
+//! Your own vertex and edge types are read and written under the tags a
+//! [`Registry`] gives them.
 //!
 //! ```
 //! use cairn_g2o::{read_bytes, to_string, ReadOptions};
@@ -21,9 +23,13 @@
 
 pub mod error;
 pub mod reader;
+pub mod registry;
 pub mod tags;
 pub mod writer;
 
 pub use error::{G2oError, LineError};
 pub use reader::{LoadReport, ReadOptions, read_bytes, read_file};
-pub use writer::{remove_temporary_files, to_string, write, write_atomically, write_file};
+pub use registry::{G2oMeasurement, Registry, RegistryError};
+pub use writer::{
+    remove_temporary_files, to_string, to_string_with, write, write_atomically, write_file,
+};

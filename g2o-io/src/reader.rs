@@ -1,6 +1,7 @@
 //! Reading the g2o text format.
 
 use crate::error::{G2oError, LineError};
+use crate::registry::Registry;
 use crate::tags;
 use cairn_core::information::{PositiveDefinite, nearest_positive_definite};
 use cairn_core::{
@@ -12,11 +13,14 @@ use std::collections::BTreeMap;
 use std::path::Path;
 
 /// Options of the reader.
-#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+#[derive(Clone, Debug, Default)]
 pub struct ReadOptions {
     /// Replace information matrices that are not positive definite by the
     /// nearest positive-definite matrix instead of refusing the file.
     pub repair_information: bool,
+    /// Tags of your own vertex and edge types, read like the built-in ones
+    /// (unknown tags are counted and skipped).
+    pub registry: Registry,
 }
 
 /// What the reader found besides the graph.
@@ -63,17 +67,17 @@ pub fn read_file(
 
 /// Reads g2o text held in memory.
 pub fn read_bytes(bytes: &[u8], options: &ReadOptions) -> Result<(Graph, LoadReport), G2oError> {
-    Reader::new(bytes, *options).run()
+    Reader::new(bytes, options).run()
 }
 
 /// A line split into its tag and fields, with typed access.
-struct Fields<'a> {
-    tag: &'a str,
+pub(crate) struct Fields<'a> {
+    pub(crate) tag: &'a str,
     items: Vec<&'a str>,
 }
 
 impl<'a> Fields<'a> {
-    fn need(&self, n: usize) -> Result<(), LineError> {
+    pub(crate) fn need(&self, n: usize) -> Result<(), LineError> {
         if self.items.len() < n {
             return Err(LineError::MissingFields {
                 tag: self.tag.to_string(),
@@ -84,7 +88,7 @@ impl<'a> Fields<'a> {
         Ok(())
     }
 
-    fn number(&self, k: usize) -> Result<f64, LineError> {
+    pub(crate) fn number(&self, k: usize) -> Result<f64, LineError> {
         let text = self.items[k];
         let v: f64 = text.parse().map_err(|_| LineError::BadNumber {
             field: k + 1,
@@ -116,7 +120,10 @@ impl<'a> Fields<'a> {
     }
 
     /// An information matrix given as its upper triangle, row by row.
-    fn information<const E: usize>(&self, first: usize) -> Result<SMatrix<f64, E, E>, LineError> {
+    pub(crate) fn information<const E: usize>(
+        &self,
+        first: usize,
+    ) -> Result<SMatrix<f64, E, E>, LineError> {
         let mut m = SMatrix::<f64, E, E>::zeros();
         let mut k = first;
         for r in 0..E {
@@ -157,9 +164,10 @@ struct PendingLandmark {
     information: SMatrix<f64, 2, 2>,
 }
 
-struct Reader<'a> {
+/// The state of one read.
+pub(crate) struct Reader<'a> {
     bytes: &'a [u8],
-    options: ReadOptions,
+    options: &'a ReadOptions,
     graph: Graph,
     report: LoadReport,
     create_vertices: bool,
@@ -172,7 +180,7 @@ struct Reader<'a> {
 }
 
 impl<'a> Reader<'a> {
-    fn new(bytes: &'a [u8], options: ReadOptions) -> Self {
+    fn new(bytes: &'a [u8], options: &'a ReadOptions) -> Self {
         // Files with no VERTEX line at all (CSAIL, manhattan, kitti_*) get their
         // vertices from the edges.
         let has_vertices = memchr::memmem::find_iter(bytes, b"VERTEX_").any(|at| {
@@ -260,14 +268,14 @@ impl<'a> Reader<'a> {
                 fields.need(11)?;
                 let z = fields.numbers::<3>(2)?;
                 let edge = EdgeSE2::new(SE2::new(z[0], z[1], z[2]));
-                self.binary(fields, line, edge, fields.information::<3>(5)?)?;
+                self.binary(fields, edge, fields.information::<3>(5)?)?;
                 11
             }
             tags::EDGE_SE2_XY => {
                 fields.need(7)?;
                 let z = fields.numbers::<2>(2)?;
                 let edge = EdgeSE2XY::new(Vector2::new(z[0], z[1]));
-                self.binary(fields, line, edge, fields.information::<2>(4)?)?;
+                self.binary(fields, edge, fields.information::<2>(4)?)?;
                 7
             }
             tags::LANDMARK2 => {
@@ -285,21 +293,14 @@ impl<'a> Reader<'a> {
             tags::EDGE_PRIOR_SE2 => {
                 fields.need(10)?;
                 let z = fields.numbers::<3>(1)?;
-                let id = fields.id(0)?;
-                self.ensure_vertex::<SE2, 3>(id, self.create_vertices)?;
-                if let Some(info) = self.checked_information(line, fields.information::<3>(4)?)? {
-                    self.graph.add_checked_unary_edge(
-                        id,
-                        EdgePriorSE2::new(SE2::new(z[0], z[1], z[2])),
-                        info,
-                    )?;
-                }
+                let edge = EdgePriorSE2::new(SE2::new(z[0], z[1], z[2]));
+                self.unary(fields, edge, fields.information::<3>(4)?)?;
                 10
             }
             tags::EDGE_SE3_QUAT => {
                 fields.need(30)?;
                 let z = SE3::from_params(&quaternion_params(fields, 2)?);
-                self.binary(fields, line, EdgeSE3::new(z), fields.information::<6>(9)?)?;
+                self.binary(fields, EdgeSE3::new(z), fields.information::<6>(9)?)?;
                 30
             }
             tags::FIX => {
@@ -309,10 +310,13 @@ impl<'a> Reader<'a> {
                 self.fix_lines.push((line, ids));
                 fields.items.len()
             }
-            other => {
-                count(&mut self.report.unknown, other);
-                return Ok(());
-            }
+            other => match self.options.registry.reader(other) {
+                Some(read) => read(self, fields)?,
+                None => {
+                    count(&mut self.report.unknown, other);
+                    return Ok(());
+                }
+            },
         };
         if fields.items.len() > used {
             self.report.extra_fields += 1;
@@ -321,7 +325,7 @@ impl<'a> Reader<'a> {
         Ok(())
     }
 
-    fn vertex<V: Variable<D>, const D: usize>(
+    pub(crate) fn vertex<V: Variable<D>, const D: usize>(
         &mut self,
         fields: &Fields,
     ) -> Result<usize, LineError> {
@@ -383,10 +387,10 @@ impl<'a> Reader<'a> {
         }
     }
 
-    fn binary<T, const E: usize, const D1: usize, const D2: usize>(
+    /// Adds an edge between the line's first two ids.
+    pub(crate) fn binary<T, const E: usize, const D1: usize, const D2: usize>(
         &mut self,
         fields: &Fields,
-        line: usize,
         edge: T,
         information: SMatrix<f64, E, E>,
     ) -> Result<(), LineError>
@@ -396,8 +400,26 @@ impl<'a> Reader<'a> {
         let (i, j) = (fields.id(0)?, fields.id(1)?);
         self.ensure_vertex::<T::V1, D1>(i, self.create_vertices)?;
         self.ensure_vertex::<T::V2, D2>(j, self.create_vertices)?;
-        if let Some(info) = self.checked_information(line, information)? {
+        if let Some(info) = self.checked_information(self.report.lines, information)? {
             self.graph.add_checked_edge(i, j, edge, info)?;
+        }
+        Ok(())
+    }
+
+    /// Adds an edge on the line's first id.
+    pub(crate) fn unary<T, const E: usize, const D: usize>(
+        &mut self,
+        fields: &Fields,
+        edge: T,
+        information: SMatrix<f64, E, E>,
+    ) -> Result<(), LineError>
+    where
+        T: cairn_core::UnaryEdge<E, D>,
+    {
+        let id = fields.id(0)?;
+        self.ensure_vertex::<T::V, D>(id, self.create_vertices)?;
+        if let Some(info) = self.checked_information(self.report.lines, information)? {
+            self.graph.add_checked_unary_edge(id, edge, info)?;
         }
         Ok(())
     }

@@ -18,3 +18,16 @@ pub const EDGE_PRIOR_SE2: &str = "EDGE_PRIOR_SE2";
 pub const EDGE_SE3_QUAT: &str = "EDGE_SE3:QUAT";
 /// `FIX id …`: hold the listed vertices constant.
 pub const FIX: &str = "FIX";
+
+/// Every tag above: a registered type cannot take one.
+pub const ALL: [&str; 9] = [
+    VERTEX_SE2,
+    VERTEX_XY,
+    VERTEX_SE3_QUAT,
+    EDGE_SE2,
+    EDGE_SE2_XY,
+    LANDMARK2,
+    EDGE_PRIOR_SE2,
+    EDGE_SE3_QUAT,
+    FIX,
+];

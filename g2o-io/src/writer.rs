@@ -1,6 +1,7 @@
 //! Writing the g2o text format: full precision, atomic file replacement.
 
 use crate::error::G2oError;
+use crate::registry::Registry;
 use crate::tags;
 use cairn_core::{
     EdgePriorSE2, EdgeSE2, EdgeSE2XY, EdgeSE3, EdgeView, Graph, SE2, SE3, Variable, VertexId,
@@ -69,9 +70,18 @@ fn edge_record(e: &EdgeView) -> Option<(&'static str, [f64; 7], usize)> {
 /// by a FIX line), then edges in insertion order with their information
 /// matrices' upper triangles row by row.
 pub fn to_string(graph: &Graph) -> Result<String, G2oError> {
+    to_string_with(graph, &Registry::default())
+}
+
+/// [`to_string`] for graphs that hold your own types, under the tags
+/// `registry` gives them.
+pub fn to_string_with(graph: &Graph, registry: &Registry) -> Result<String, G2oError> {
     let mut out = String::with_capacity(64 * (graph.num_vertices() + 2 * graph.num_edges()));
+    let mut custom = Vec::new();
     for v in graph.vertices() {
-        let tag = vertex_tag(v.kind.type_id).ok_or(G2oError::Unwritable(v.kind.name))?;
+        let tag = vertex_tag(v.kind.type_id)
+            .or_else(|| registry.vertex_tag(v.kind.type_id))
+            .ok_or(G2oError::Unwritable(v.kind.name))?;
         out.push_str(tag);
         id(&mut out, v.id);
         for &p in v.params {
@@ -85,12 +95,27 @@ pub fn to_string(graph: &Graph) -> Result<String, G2oError> {
         }
     }
     for e in graph.edges() {
-        let (tag, measurement, len) = edge_record(&e).ok_or(G2oError::Unwritable(e.name()))?;
+        let (tag, measurement) = match edge_record(&e) {
+            Some((tag, p, len)) => {
+                custom.clear();
+                custom.extend_from_slice(&p[..len]);
+                (tag, &custom)
+            }
+            None => {
+                let t = registry
+                    .edge(e.edge_type())
+                    .ok_or(G2oError::Unwritable(e.name()))?;
+                custom.clear();
+                custom.resize(t.len, 0.0);
+                (t.write)(e.edge(), &mut custom);
+                (t.tag, &custom)
+            }
+        };
         out.push_str(tag);
         for &v in e.vertices() {
             id(&mut out, graph.vertex(v).id);
         }
-        for &m in &measurement[..len] {
+        for &m in measurement {
             num(&mut out, m);
         }
         let n = e.error_dim();

@@ -185,6 +185,7 @@ fn indefinite_information_is_refused_then_repaired() {
         text.as_bytes(),
         &ReadOptions {
             repair_information: true,
+            ..Default::default()
         },
     )
     .unwrap();

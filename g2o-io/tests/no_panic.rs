@@ -37,6 +37,7 @@ fn accept_anything(bytes: &[u8]) {
         bytes,
         &ReadOptions {
             repair_information: true,
+            ..Default::default()
         },
     ) {
         let text = cairn_g2o::to_string(&graph).expect("built-in types are writable");

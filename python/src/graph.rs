@@ -24,7 +24,10 @@ const MAX_ITERATIONS: usize = 1_000_000;
 #[pyfunction]
 #[pyo3(signature = (path, repair_information = false))]
 pub fn read_g2o(py: Python<'_>, path: PathBuf, repair_information: bool) -> PyResult<Graph> {
-    let options = ReadOptions { repair_information };
+    let options = ReadOptions {
+        repair_information,
+        ..Default::default()
+    };
     let (graph, _) = py
         .detach(|| cairn_g2o::read_file(&path, &options))
         .map_err(g2o_error)?;

@@ -269,10 +269,24 @@ fn parse_epfl_csv(text: &str) -> Result<Track, TrackError> {
 }
 
 /// AMZ fssim YAML: lists of `[x, y]` under `cones_left`, `cones_right`,
-/// `cones_orange`, `cones_orange_big`, and `starting_pose_front_wing: [x, y, yaw]`.
-/// Only this block-list shape is accepted. A cone repeated at the same place
-/// (fssim closes each boundary with its first cone) is kept once.
+/// `cones_orange`, `cones_orange_big`, and `starting_pose_front_wing: [x, y, yaw]`,
+/// in any YAML layout (block or flow); other keys are ignored. A cone
+/// repeated at the same place (fssim closes each boundary with its first
+/// cone) is kept once.
 fn parse_fssim_yaml(text: &str) -> Result<Track, TrackError> {
+    #[derive(serde::Deserialize, Default)]
+    #[serde(default)]
+    struct Fssim {
+        cones_left: Option<Vec<Vec<f64>>>,
+        cones_right: Option<Vec<Vec<f64>>>,
+        cones_orange: Option<Vec<Vec<f64>>>,
+        cones_orange_big: Option<Vec<Vec<f64>>>,
+        starting_pose_front_wing: Option<Vec<f64>>,
+    }
+    let doc: Fssim = serde_saphyr::from_str(text).map_err(|e| {
+        let line = e.location().map_or(1, |l| l.line() as usize);
+        parse_error(line, e.without_snippet().to_string())
+    })?;
     let mut track = Track {
         name: String::new(),
         cones: Vec::new(),
@@ -280,78 +294,37 @@ fn parse_fssim_yaml(text: &str) -> Result<Track, TrackError> {
         start: SE2::identity(),
         kind: TrackKind::Loop,
     };
-    let mut key = String::new();
-    let mut lists: Vec<(String, Vec<Vec<f64>>, usize)> = Vec::new();
-    for (i, raw) in text.lines().enumerate() {
-        let line = i + 1;
-        let trimmed = raw.trim_end();
-        if trimmed.trim().is_empty() || trimmed.trim_start().starts_with('#') {
-            continue;
+    if let Some(pose) = doc.starting_pose_front_wing {
+        let line = key_line(text, "starting_pose_front_wing");
+        if pose.len() < 2 {
+            return Err(parse_error(line, "starting pose needs x and y"));
         }
-        if !trimmed.starts_with(' ') && !trimmed.starts_with('-') {
-            let (k, rest) = trimmed
-                .split_once(':')
-                .ok_or_else(|| parse_error(line, "expected 'key:'"))?;
-            key = k.trim().to_string();
-            lists.push((key.clone(), Vec::new(), line));
-            if !matches!(rest.trim(), "" | "[]") {
-                return Err(parse_error(line, "only block lists are supported"));
-            }
-            continue;
+        let x = coordinate(pose[0], line, "the starting x")?;
+        let y = coordinate(pose[1], line, "the starting y")?;
+        let yaw = pose.get(2).copied().unwrap_or(0.0);
+        if !yaw.is_finite() {
+            return Err(parse_error(line, "the starting yaw is not finite"));
         }
-        let Some((_, items, _)) = lists.last_mut() else {
-            return Err(parse_error(line, "list item before any key"));
-        };
-        let s = trimmed.trim_start();
-        let (new_item, value) = if let Some(rest) = s.strip_prefix("- - ") {
-            (true, rest)
-        } else if trimmed.starts_with("- ") {
-            // A scalar list (starting pose): collect into one item.
-            if items.is_empty() {
-                items.push(Vec::new());
-            }
-            (false, &s[2..])
-        } else if let Some(rest) = s.strip_prefix("- ") {
-            (false, rest)
-        } else {
-            return Err(parse_error(line, format!("unexpected line under '{key}'")));
-        };
-        let v: f64 = value
-            .trim()
-            .parse()
-            .map_err(|_| parse_error(line, format!("'{}' is not a number", value.trim())))?;
-        let v = coordinate(v, line, "the value")?;
-        if new_item || items.is_empty() {
-            items.push(Vec::new());
-        }
-        if let Some(item) = items.last_mut() {
-            item.push(v);
-        }
+        track.start = SE2::new(x, y, yaw);
     }
-    for (key, items, line) in lists {
-        let color = match key.as_str() {
-            "cones_left" => Color::Blue,
-            "cones_right" => Color::Yellow,
-            "cones_orange" => Color::Orange,
-            "cones_orange_big" => Color::BigOrange,
-            "starting_pose_front_wing" => {
-                let p = items.first().cloned().unwrap_or_default();
-                if p.len() < 2 {
-                    return Err(parse_error(line, "starting pose needs x and y"));
-                }
-                track.start = SE2::new(p[0], p[1], p.get(2).copied().unwrap_or(0.0));
-                continue;
-            }
-            _ => continue,
-        };
-        for p in items {
+    let lists = [
+        ("cones_left", doc.cones_left, Color::Blue),
+        ("cones_right", doc.cones_right, Color::Yellow),
+        ("cones_orange", doc.cones_orange, Color::Orange),
+        ("cones_orange_big", doc.cones_orange_big, Color::BigOrange),
+    ];
+    for (key, points, color) in lists {
+        let line = key_line(text, key);
+        for p in points.unwrap_or_default() {
             if p.len() < 2 {
                 return Err(parse_error(
                     line,
                     format!("a point under '{key}' needs x and y"),
                 ));
             }
-            let cone = Cone::new(p[0], p[1], color);
+            let x = coordinate(p[0], line, &format!("x under '{key}'"))?;
+            let y = coordinate(p[1], line, &format!("y under '{key}'"))?;
+            let cone = Cone::new(x, y, color);
             let duplicate = track
                 .cones
                 .iter()
@@ -362,6 +335,17 @@ fn parse_fssim_yaml(text: &str) -> Result<Track, TrackError> {
         }
     }
     Ok(track)
+}
+
+/// The line where `key` starts a mapping entry at the left margin (1 if
+/// the layout has none, as a flow mapping on one line).
+fn key_line(text: &str, key: &str) -> usize {
+    text.lines()
+        .position(|l| {
+            l.strip_prefix(key)
+                .is_some_and(|r| r.trim_start().starts_with(':'))
+        })
+        .map_or(1, |i| i + 1)
 }
 
 /// Writes cones as the EUFS CSV map (FORMAT.md): one row per cone in order,

@@ -265,3 +265,27 @@ fn each_scan_is_matched_again_as_a_whole() {
     };
     assert!(report.association_accuracy > 0.997, "{report:?}");
 }
+
+/// fssim files in any YAML layout read alike: block lists, flow lists, a
+/// flow mapping, comments, keys the reader does not use.
+#[test]
+fn fssim_yaml_reads_in_block_and_flow_style() {
+    let block = "# an fssim track\ncones_left:\n- - 0.0\n  - 2.0\n- - 5.0\n  - 2.0\n\
+                 cones_right:\n- - 0.0\n  - -2.0\n- [5.0, -2.0]\ncones_orange_big: []\n\
+                 starting_pose_front_wing: [-1.0, 0.0, 0.1]\ntk_device_distance: 3.0\n";
+    let flow = "{cones_left: [[0, 2], [5, 2]], cones_right: [[0, -2], [5.0, -2.0]],\n \
+                starting_pose_front_wing: [-1, 0, 0.1]}\n";
+    let a = Track::parse("block", block, true).unwrap();
+    let b = Track::parse("flow", flow, true).unwrap();
+    assert_eq!(a.cones.len(), 4);
+    assert_eq!(a.cones, b.cones);
+    assert_eq!(a.start, b.start);
+    assert_eq!(a.start.theta, 0.1);
+    // Errors name the line.
+    let bad = "cones_left:\n- [0.0, 2.0]\n- [1.0, oops]\n";
+    let err = Track::parse("bad", bad, true).unwrap_err().to_string();
+    assert!(err.starts_with("line 3:"), "{err}");
+    let short = "cones_left: [[0.0, 2.0]]\ncones_right:\n- [1.0]\n";
+    let err = Track::parse("short", short, true).unwrap_err().to_string();
+    assert_eq!(err, "line 2: a point under 'cones_right' needs x and y");
+}

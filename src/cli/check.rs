@@ -32,6 +32,7 @@ pub fn run(a: CheckArgs) -> Result<(), super::CliError> {
     // Read with repair so that indefinite matrices are counted, not fatal.
     let options = ReadOptions {
         repair_information: true,
+        ..Default::default()
     };
     let (graph, report) =
         cairn::g2o::read_bytes(&bytes, &options).map_err(super::bad_input(&name))?;

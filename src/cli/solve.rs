@@ -261,6 +261,7 @@ fn solve(a: SolveArgs) -> Result<(), CliError> {
     let t = Instant::now();
     let options = ReadOptions {
         repair_information: a.repair_information,
+        ..Default::default()
     };
     // The file's bytes are dropped once parsed: on a 10⁶-pose file they are
     // 250 MB that the solve does not need.
