@@ -36,8 +36,14 @@ HERE = os.path.dirname(os.path.abspath(__file__))
 ROOT = os.path.dirname(HERE)
 PEERS_ALL = ["gtsam", "g2o", "apex", "tiny", "factrs"]
 # Cairn's runs: from the file under the peers' rule; the defaults; LM with
-# g2o's damping; GN under GTSAM's stopping rule.
-CAIRN_RUNS = ["cairn", "cairn-default", "cairn-g2o-lm", "cairn-stop"]
+# g2o's damping; GN under GTSAM's stopping rule; SE3 files on the Logmap
+# objective.
+CAIRN_RUNS = ["cairn", "cairn-default", "cairn-g2o-lm", "cairn-stop", "cairn-logmap"]
+
+
+def is_se3(path):
+    with open(path) as fh:
+        return "EDGE_SE3:QUAT" in fh.read(1 << 16)
 ALGOS_ALL = ["gn", "lm", "dogleg"]
 
 
@@ -67,12 +73,13 @@ def run_peer(peers_dir, lib, algo, path, env, timeout):
 
 
 def run_cairn(cairn, algo, path, threads, env, timeout, scorer, repair=False, extra=(),
-              default=False):
+              default=False, rotvec=False):
     """One `cairn solve` from the file under the peers' stopping rule (with
     `extra` arguments), or with `default`, `cairn solve` with its default
     options. A file whose information matrices are indefinite (cubicle) is
     refused, and solved again with them repaired; the harness scores the
-    estimate with the file's own information, as the peers'."""
+    estimate with the file's own information, as the peers'. With `rotvec`
+    the estimate is scored on the Logmap objective as well."""
     with tempfile.TemporaryDirectory() as tmp:
         out = os.path.join(tmp, "out.g2o")
         options = [] if default else ["--init", "file", "--solver", algo, "-i", "100",
@@ -89,7 +96,7 @@ def run_cairn(cairn, algo, path, threads, env, timeout, scorer, repair=False, ex
         if p.returncode != 0:
             if "not positive definite" in p.stderr and not repair:
                 return run_cairn(cairn, algo, path, threads, env, timeout, scorer, True, extra,
-                                 default)
+                                 default, rotvec)
             return dict(status="error", error=p.stderr[-300:])
         d = json.loads(p.stdout)
         s = d["summary"]
@@ -99,6 +106,8 @@ def run_cairn(cairn, algo, path, threads, env, timeout, scorer, repair=False, ex
                    repaired=repair, init=d["init"])
         if scorer is not None:
             rec["common_chi2"] = scorer(path, out)
+            if rotvec:
+                rec["common_chi2_rotvec"] = scorer(path, out, rotvec=True)
         return rec
 
 
@@ -111,10 +120,10 @@ def make_scorer(peers_dir):
     except ImportError:
         return None
 
-    def score(original, estimate):
+    def score(original, estimate, rotvec=False):
         g = g2o_common.read_g2o(original)
         e = g2o_common.read_g2o(estimate)
-        return g2o_common.common_chi2(g, e.pose_est, e.point_est)
+        return g2o_common.common_chi2(g, e.pose_est, e.point_est, rotvec=rotvec)
 
     return score
 
@@ -149,6 +158,7 @@ def summarise(rows):
             wall_s=median([r["wall_s"] for r in good if "wall_s" in r]),
             load_s=median([r["load_s"] for r in good if r.get("load_s") is not None]),
             chi2=good[-1]["common_chi2"],
+            chi2_rotvec=good[-1].get("common_chi2_rotvec"),
             iterations=good[-1].get("iterations"),
             repaired=good[-1].get("repaired", False),
             init=good[-1].get("init"),
@@ -227,6 +237,39 @@ def render_same_lm(table, files):
         else:
             cells += [(g or {}).get("status") or "–"] + ["–"] * 4
         lines.append("| " + " | ".join(cells) + " |")
+    return "\n".join(lines)
+
+
+def render_logmap(table, files, algos, peers):
+    """SE3 files on the Logmap objective: Cairn with `--se3-error logmap`
+    against every peer, all scored with the harness's common_chi2_rotvec."""
+    lines = ["| dataset | algo | Cairn it | Cairn solve | Cairn χ² (Logmap) | fastest peer "
+             "| its χ² (Logmap) | ratio | χ² ok | fastest peer as low | ratio |",
+             "|---|---|---:|---:|---:|---|---:|---:|---|---|---:|"]
+    for f in files:
+        for algo in algos:
+            c = table.get((f, algo, "cairn-logmap"))
+            if not c or c.get("solve_s") is None or c.get("chi2_rotvec") is None:
+                continue
+            ok = [(p, table[(f, algo, p)]) for p in peers
+                  if table.get((f, algo, p), {}).get("solve_s") is not None
+                  and table[(f, algo, p)].get("chi2_rotvec") is not None]
+            name = f[:-4] + (" (repaired)" if c.get("repaired") else "")
+            cells = [name, algo, str(c["iterations"]), fmt_time(c["solve_s"]),
+                     f"{c['chi2_rotvec']:.6f}"]
+            fastest = min(ok, key=lambda pr: pr[1]["solve_s"], default=None)
+            if fastest:
+                p, r = fastest
+                cells += [f"{p} {fmt_time(r['solve_s'])}", f"{r['chi2_rotvec']:.6f}",
+                          f"{c['solve_s'] / r['solve_s']:.2f}",
+                          "yes" if no_worse(c["chi2_rotvec"], r["chi2_rotvec"]) else "**no**"]
+            else:
+                cells += ["–"] * 4
+            low = [(p, r) for p, r in ok if no_worse(r["chi2_rotvec"], c["chi2_rotvec"])]
+            best = min(low, key=lambda pr: pr[1]["solve_s"], default=None)
+            cells += ([f"{best[0]} {fmt_time(best[1]['solve_s'])}",
+                       f"{c['solve_s'] / best[1]['solve_s']:.2f}"] if best else ["none", "–"])
+            lines.append("| " + " | ".join(cells) + " |")
     return "\n".join(lines)
 
 
@@ -391,8 +434,12 @@ def main():
                     stop = ["cairn-stop"] if a.stop_rule and algo == "gn" else []
                     default = ["cairn-default"] if algo == "gn" else []
                     g2o_lm = ["cairn-g2o-lm"] if algo == "lm" else []
-                    for lib in ["cairn"] + default + g2o_lm + stop + peers:
-                        if lib == "cairn-g2o-lm":
+                    logmap = ["cairn-logmap"] if is_se3(path) else []
+                    for lib in ["cairn"] + default + g2o_lm + logmap + stop + peers:
+                        if lib == "cairn-logmap":
+                            rec = run_cairn(a.cairn, algo, path, a.threads, env, a.timeout, scorer,
+                                            extra=["--se3-error", "logmap"], rotvec=True)
+                        elif lib == "cairn-g2o-lm":
                             rec = run_cairn(a.cairn, algo, path, a.threads, env, a.timeout, scorer,
                                             extra=["--damping", "levenberg"])
                         elif lib == "cairn-default":
@@ -423,12 +470,14 @@ def main():
     phases = render_phases(rows, files)
     stop_rule = render_stop_rule(table, files)
     same_lm = render_same_lm(table, files)
-    print(headline, suite, same_lm, stop_rule, phases, sep="\n\n")
+    logmap = render_logmap(table, files, algos, shown)
+    print(headline, suite, same_lm, logmap, stop_rule, phases, sep="\n\n")
     if a.doc:
         write_section(a.doc, "default", headline)
         write_section(a.doc, "suite", suite)
         write_section(a.doc, "stop-rule", stop_rule)
         write_section(a.doc, "same-lm", same_lm)
+        write_section(a.doc, "logmap", logmap)
         write_section(a.doc, "phases", phases)
 
 

@@ -40,7 +40,7 @@ pub use disjoint::DisjointSets;
 pub use edge::{
     BinaryEdge, Linearized, NormalBlocks, NumericBinaryEdge, NumericUnaryEdge, UnaryEdge,
 };
-pub use edges::{EdgePriorSE2, EdgeSE2, EdgeSE2XY, EdgeSE3};
+pub use edges::{EdgePriorSE2, EdgeSE2, EdgeSE2XY, EdgeSE3, Se3Error};
 pub use factor::FactorGroup;
 pub use graph::{EdgeView, Graph, GraphError, VariableKind, VertexId, VertexView};
 pub use information::{InformationIssue, PositiveDefinite};

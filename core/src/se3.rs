@@ -126,6 +126,35 @@ pub fn quaternion_from_vector(v: &Vector3<f64>) -> UnitQuaternion<f64> {
     }
 }
 
+/// The rotation vector (axis times angle in (−π, π]) of a unit quaternion
+/// with w ≥ 0: SO(3)'s log map.
+pub fn rotation_log(q: &Quaternion<f64>) -> Vector3<f64> {
+    let v = Vector3::new(q.i, q.j, q.k);
+    let n = v.norm();
+    // θ/n = 2·atan2(n, w)/n, by its series where n is tiny.
+    let scale = if n < 1e-8 {
+        2.0 / q.w
+    } else {
+        2.0 * n.atan2(q.w) / n
+    };
+    v * scale
+}
+
+/// The inverse of SO(3)'s right Jacobian at the rotation vector `phi`:
+/// Log(Exp(φ)·Exp(δ)) ≈ φ + J_r⁻¹(φ)·δ for a small δ.
+pub fn right_jacobian_inverse(phi: &Vector3<f64>) -> Matrix3<f64> {
+    let theta2 = phi.norm_squared();
+    // (1/θ² − (1 + cos θ)/(2θ·sin θ)), by its series below θ = 1e-3.
+    let c = if theta2 < 1e-6 {
+        1.0 / 12.0 + theta2 / 720.0
+    } else {
+        let theta = theta2.sqrt();
+        1.0 / theta2 - (1.0 + theta.cos()) / (2.0 * theta * theta.sin())
+    };
+    let w = skew(phi);
+    Matrix3::identity() + w * 0.5 + w * w * c
+}
+
 /// The skew-symmetric matrix with `skew(a) · b = a × b`.
 pub fn skew(a: &Vector3<f64>) -> Matrix3<f64> {
     Matrix3::new(0.0, -a.z, a.y, a.z, 0.0, -a.x, -a.y, a.x, 0.0)

@@ -4,7 +4,9 @@
 
 use cairn_core::edge::{numeric_binary, numeric_unary};
 use cairn_core::se3::quaternion_from_vector;
-use cairn_core::{BinaryEdge, EdgePriorSE2, EdgeSE2, EdgeSE2XY, EdgeSE3, SE2, SE3, UnaryEdge};
+use cairn_core::{
+    BinaryEdge, EdgePriorSE2, EdgeSE2, EdgeSE2XY, EdgeSE3, SE2, SE3, Se3Error, UnaryEdge,
+};
 use nalgebra::{DMatrix, SMatrix, UnitQuaternion, Vector2, Vector3};
 use rand::rngs::StdRng;
 use rand::{Rng, SeedableRng};
@@ -137,17 +139,44 @@ fn edge_prior_se2_jacobian() {
 
 #[test]
 fn edge_se3_jacobians() {
-    let mut rng = StdRng::seed_from_u64(4);
-    let mut checked = 0;
-    while checked < STATES {
-        let (edge, xi, xj) = (EdgeSE3::new(se3(&mut rng)), se3(&mut rng), se3(&mut rng));
-        // The error is discontinuous where q_E's real part changes sign.
-        let e = edge.measurement().inverse().compose(&xi.between(&xj));
-        if e.q.quaternion().w.abs() < 1e-3 {
+    for kind in Se3Error::ALL {
+        let mut rng = StdRng::seed_from_u64(4);
+        let mut checked = 0;
+        while checked < STATES {
+            let z = se3(&mut rng);
+            let (edge, xi, xj) = (EdgeSE3::with_error(z, kind), se3(&mut rng), se3(&mut rng));
+            // Both errors are discontinuous where q_E's real part changes
+            // sign (a rotation of π).
+            let e = edge.measurement().inverse().compose(&xi.between(&xj));
+            if e.q.quaternion().w.abs() < 1e-3 {
+                continue;
+            }
+            check_binary(&edge, &xi, &xj, &mut rng);
+            checked += 1;
+        }
+    }
+}
+
+/// The Logmap error's rotation part is the rotation vector of R_E, and its
+/// translation part g2o's.
+#[test]
+fn the_logmap_error_is_the_rotation_vector() {
+    let mut rng = StdRng::seed_from_u64(6);
+    for _ in 0..STATES {
+        let (z, xi, xj) = (se3(&mut rng), se3(&mut rng), se3(&mut rng));
+        let e = z.inverse().compose(&xi.between(&xj));
+        let g2o = EdgeSE3::new(z).error(&xi, &xj);
+        let log = EdgeSE3::with_error(z, Se3Error::Logmap).error(&xi, &xj);
+        let rotation = e.q.scaled_axis();
+        let angle = rotation.norm();
+        if angle > PI - 1e-6 {
             continue;
         }
-        check_binary(&edge, &xi, &xj, &mut rng);
-        checked += 1;
+        assert!((log.fixed_rows::<3>(3) - rotation).amax() < 1e-9 * angle.max(1.0));
+        assert_eq!(log.fixed_rows::<3>(0), g2o.fixed_rows::<3>(0));
+        // |q.xyz| = sin(θ/2): g2o's rotation part is the same axis, shorter.
+        let half = (angle / 2.0).sin();
+        assert!((g2o.fixed_rows::<3>(3).norm() - half).abs() < 1e-9);
     }
 }
 
@@ -165,6 +194,8 @@ fn edge_se3_jacobians_near_the_optimum() {
             ),
         );
         let xj = xi.compose(&z).compose(&noise);
-        check_binary(&EdgeSE3::new(z), &xi, &xj, &mut rng);
+        for kind in Se3Error::ALL {
+            check_binary(&EdgeSE3::with_error(z, kind), &xi, &xj, &mut rng);
+        }
     }
 }

@@ -5,7 +5,7 @@ use crate::registry::Registry;
 use crate::tags;
 use cairn_core::information::{PositiveDefinite, nearest_positive_definite};
 use cairn_core::{
-    EdgePriorSE2, EdgeSE2, EdgeSE2XY, EdgeSE3, Graph, InformationIssue, SE2, SE3,
+    EdgePriorSE2, EdgeSE2, EdgeSE2XY, EdgeSE3, Graph, InformationIssue, SE2, SE3, Se3Error,
     SpanningTreeReport, Variable, VertexId,
 };
 use nalgebra::{SMatrix, Vector2};
@@ -21,6 +21,8 @@ pub struct ReadOptions {
     /// Tags of your own vertex and edge types, read like the built-in ones
     /// (unknown tags are counted and skipped).
     pub registry: Registry,
+    /// The error `EDGE_SE3:QUAT` edges measure. Default g2o's.
+    pub se3_error: Se3Error,
 }
 
 /// What the reader found besides the graph.
@@ -300,7 +302,8 @@ impl<'a> Reader<'a> {
             tags::EDGE_SE3_QUAT => {
                 fields.need(30)?;
                 let z = SE3::from_params(&quaternion_params(fields, 2)?);
-                self.binary(fields, EdgeSE3::new(z), fields.information::<6>(9)?)?;
+                let edge = EdgeSE3::with_error(z, self.options.se3_error);
+                self.binary(fields, edge, fields.information::<6>(9)?)?;
                 30
             }
             tags::FIX => {

@@ -5,7 +5,7 @@ use super::solve_output::{
 };
 use super::trajectory::{TrajectoryFormat, trajectory};
 use super::{CliError, bad_input};
-use cairn::core::RobustKernel;
+use cairn::core::{RobustKernel, Se3Error};
 use cairn::g2o::ReadOptions;
 use cairn::solvers::{
     Algorithm, Factorization, Initialization, IterationStats, LevenbergMarquardtConfig,
@@ -33,6 +33,14 @@ enum DampingName {
     /// H + λI, first λ = τ·max(diag H), as g2o (with the default τ, g2o's
     /// iterates; on SE3 graphs up to the form of the update). Better where H is singular.
     Levenberg,
+}
+
+#[derive(Clone, Copy, Debug, PartialEq, Eq, ValueEnum)]
+enum Se3ErrorName {
+    /// g2o's: (t, q.xyz) of Z⁻¹·Xᵢ⁻¹·Xⱼ
+    G2o,
+    /// (t, Log R) of Z⁻¹·Xᵢ⁻¹·Xⱼ
+    Logmap,
 }
 
 #[derive(Clone, Copy, Debug, PartialEq, Eq, ValueEnum)]
@@ -144,6 +152,12 @@ pub struct SolveArgs {
     /// nearest positive-definite ones (cubicle.g2o needs this) instead of refusing.
     #[arg(help_heading = "Algorithm", long)]
     repair_information: bool,
+    /// The error of EDGE_SE3:QUAT edges: g2o's (translation and the
+    /// quaternion's vector part, ≈ θ/2) or logmap (translation and the
+    /// rotation vector θ·axis, the objective of GTSAM, apex-solver and
+    /// factrs to first order).
+    #[arg(help_heading = "Algorithm", long, value_enum, default_value = "g2o")]
+    se3_error: Se3ErrorName,
     /// Robust kernel on the edges' squared errors: huber, pseudo-huber, cauchy,
     /// geman-mcclure, welsch, fair, tukey, saturated or dcs. (With dcs, use gn or
     /// dogleg: its weights are not the derivative of its cost, which LM's gain
@@ -261,6 +275,10 @@ fn solve(a: SolveArgs) -> Result<(), CliError> {
     let t = Instant::now();
     let options = ReadOptions {
         repair_information: a.repair_information,
+        se3_error: match a.se3_error {
+            Se3ErrorName::G2o => Se3Error::G2o,
+            Se3ErrorName::Logmap => Se3Error::Logmap,
+        },
         ..Default::default()
     };
     // The file's bytes are dropped once parsed: on a 10⁶-pose file they are
@@ -443,6 +461,7 @@ fn solve(a: SolveArgs) -> Result<(), CliError> {
             "summary": summary,
             "kept_start": summary.kept_start,
             "init": summary.init.name(),
+            "se3_error": options.se3_error.name(),
             "marginals": marginal_ids.iter().zip(&marginals).map(|(id, m)| serde_json::json!({
                 "vertex": id,
                 "covariance": m.row_iter().map(|r| r.iter().copied().collect::<Vec<f64>>()).collect::<Vec<_>>(),
