@@ -43,7 +43,7 @@ CAIRN_RUNS = ["cairn", "cairn-default", "cairn-g2o-lm", "cairn-stop", "cairn-log
 
 def is_se3(path):
     with open(path) as fh:
-        return "EDGE_SE3:QUAT" in fh.read(1 << 16)
+        return "_SE3:QUAT" in fh.read(1 << 16)
 ALGOS_ALL = ["gn", "lm", "dogleg"]
 
 

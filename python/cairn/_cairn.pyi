@@ -13,8 +13,11 @@ _Path = Union[str, "os.PathLike[str]"]
 _Vector = npt.ArrayLike
 _Matrix = npt.ArrayLike
 
-def read_g2o(path: _Path, repair_information: bool = False) -> Graph:
-    """Reads a g2o file into a Graph (OSError: unreadable; ValueError: bad content, the line named)."""
+def read_g2o(path: _Path, repair_information: bool = False, se3_error: str = "g2o") -> Graph:
+    """Reads a g2o file into a Graph (OSError: unreadable; ValueError: bad content, the line named).
+
+    se3_error: "g2o" (translation and quaternion vector part) or "logmap"
+    (translation and rotation vector) for EDGE_SE3:QUAT edges."""
 
 class Summary:
     """The result of Graph.optimize."""

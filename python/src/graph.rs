@@ -3,7 +3,9 @@
 use crate::arrays::{Matrix, Vector, dense, finite, matrix, rows, vector};
 use crate::{g2o_error, graph_error, solve_error};
 use cairn_core::nalgebra::{Quaternion, UnitQuaternion, Vector2, Vector3};
-use cairn_core::{EdgePriorSE2, EdgeSE2, EdgeSE2XY, EdgeSE3, RobustKernel, SE2, SE3, VertexId};
+use cairn_core::{
+    EdgePriorSE2, EdgeSE2, EdgeSE2XY, EdgeSE3, RobustKernel, SE2, SE3, Se3Error, VertexId,
+};
 use cairn_g2o::ReadOptions;
 use cairn_solvers::{Algorithm, Initialization, IterationStats, Optimizer, SolverConfig, optimize};
 use numpy::PyArray2;
@@ -19,13 +21,30 @@ const MAX_ITERATIONS: usize = 1_000_000;
 /// Reads a g2o file (every vertex and edge type Cairn knows, FIX lines
 /// included) into a Graph. `repair_information` replaces information
 /// matrices that are not positive definite by the nearest ones instead of
-/// refusing the file. Raises OSError if the file cannot be read and
-/// ValueError, naming the line, if its content is bad.
+/// refusing the file. `se3_error` is the error of its EDGE_SE3:QUAT edges:
+/// "g2o" (translation and the quaternion's vector part) or "logmap"
+/// (translation and the rotation vector, the objective of GTSAM to first
+/// order). Raises OSError if the file cannot be read and ValueError, naming
+/// the line, if its content is bad.
 #[pyfunction]
-#[pyo3(signature = (path, repair_information = false))]
-pub fn read_g2o(py: Python<'_>, path: PathBuf, repair_information: bool) -> PyResult<Graph> {
+#[pyo3(signature = (path, repair_information = false, se3_error = "g2o"))]
+pub fn read_g2o(
+    py: Python<'_>,
+    path: PathBuf,
+    repair_information: bool,
+    se3_error: &str,
+) -> PyResult<Graph> {
+    let se3_error = Se3Error::ALL
+        .into_iter()
+        .find(|k| k.name() == se3_error)
+        .ok_or_else(|| {
+            PyValueError::new_err(format!(
+                "se3_error must be g2o or logmap, got {se3_error:?}"
+            ))
+        })?;
     let options = ReadOptions {
         repair_information,
+        se3_error,
         ..Default::default()
     };
     let (graph, _) = py
