@@ -75,7 +75,7 @@ pub enum Initialization {
     ChordalIsotropic,
     /// The graph's current values first, with a budget of
     /// [`AUTO_TRUSTED_ITERATIONS`]: a run that converges within it is the
-    /// result. Otherwise both chordal starts are solved too (and, where
+    /// result. Otherwise both chordal starts of its poses are solved too (and, where
     /// Gauss-Newton overshoots from one, Levenberg-Marquardt from it), and
     /// the lowest final χ² is kept; if that is the current values' run, it
     /// carries on to `max_iterations`.

@@ -108,7 +108,10 @@ impl Optimizer {
         let keep = anchors(graph, &self.config().gauge)?;
         for start in [Initialization::Chordal, Initialization::ChordalIsotropic] {
             graph.values_mut().params_mut().copy_from_slice(&initial);
-            if chordal_initialize_holding(graph, weights(start), &keep).is_ok() {
+            // A graph without poses has no chordal start but its own values.
+            let moved = chordal_initialize_holding(graph, weights(start), &keep)
+                .is_ok_and(|report| report.poses + report.landmarks > 0);
+            if moved {
                 let _ = self.run_guarded(graph, start, &mut best, on_iteration);
             }
         }

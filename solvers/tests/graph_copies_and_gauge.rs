@@ -143,3 +143,38 @@ fn the_gauge_and_fixed_vertices_are_named_by_id() {
     let summary = optimize(&mut graph, SolverConfig::default()).unwrap();
     assert_eq!(summary.gauge, vec![10]);
 }
+
+/// x³ = 1 from x = 100: Gauss-Newton (Newton's method here) needs more
+/// iterations than `Auto` trusts, and a graph without poses has no chordal
+/// start, so `Auto` carries the file's run on to convergence: one run, its
+/// iterations numbered on.
+#[derive(Clone, Debug)]
+struct Cube;
+
+impl cairn_core::NumericUnaryEdge<1> for Cube {
+    type V = nalgebra::Vector1<f64>;
+    const NAME: &'static str = "CUBE";
+    fn error(&self, x: &nalgebra::Vector1<f64>) -> nalgebra::Vector1<f64> {
+        nalgebra::Vector1::new(x[0].powi(3) - 1.0)
+    }
+}
+
+#[test]
+fn auto_carries_a_slow_run_from_the_file_on() {
+    let mut g = Graph::new();
+    g.add_vertex(0, nalgebra::Vector1::new(100.0)).unwrap();
+    g.add_unary_edge(0, Cube, nalgebra::Matrix1::new(1.0))
+        .unwrap();
+    let s = optimize(&mut g, SolverConfig::default()).unwrap();
+    assert_eq!(s.init, cairn_solvers::Initialization::File);
+    assert!(
+        s.iterations > cairn_solvers::AUTO_TRUSTED_ITERATIONS,
+        "{}",
+        s.iterations
+    );
+    assert!(s.termination.converged(), "{:?}", s.termination);
+    let numbers: Vec<usize> = s.trace.iter().map(|t| t.iteration).collect();
+    assert_eq!(numbers, (0..s.iterations).collect::<Vec<_>>());
+    let x: nalgebra::Vector1<f64> = g.value(0).unwrap();
+    assert!((x[0] - 1.0).abs() < 1e-9, "{x}");
+}

@@ -77,7 +77,8 @@ impl Optimizer {
                 {
                     break 'run end;
                 }
-                if self.next_step_is_negligible(chi2, new_chi2) {
+                let more = iteration + 1 < self.config.max_iterations;
+                if more && self.next_step_is_negligible(chi2, new_chi2) {
                     break 'run Termination::RelativeDecrease;
                 }
                 chi2 = new_chi2;
@@ -88,7 +89,8 @@ impl Optimizer {
         termination
     }
 
-    /// Whether the next Gauss-Newton step can be skipped: once χ² fell from
+    /// Whether the next Gauss-Newton step can be skipped (H and the
+    /// gradient hold the new point's): once χ² fell from
     /// `old_chi2` to `new_chi2` by less than √`relative_decrease` (the
     /// iterates converge quadratically there), the step the last
     /// factorisation gives from the new gradient, δ = −H⁻¹g, is predicted
