@@ -384,14 +384,16 @@ pub fn run_slam(a: SlamArgs) -> Result<(), super::CliError> {
         optimisations += &format!("; final optimisation {:.0} ms", 1e3 * last);
     }
     eprintln!(
-        "{name}: {} scans, {} landmarks, {} loop closure(s), {} relocalisation(s), mode {:?}; update p50 {:.3} ms, p99 {:.3} ms{optimisations}",
+        "{name}: {} scans, {} landmarks, {} loop closure(s), {} relocalisation(s), mode {:?}; update p50 {:.3} ms, p99 {:.3} ms, p99.9 {:.3} ms, max {:.3} ms{optimisations}",
         log.scans(),
         slam.map().len(),
         slam.loop_closures(),
         slam.relocalisations(),
         slam.mode(),
         lat[0],
-        lat[1]
+        lat[1],
+        lat[2],
+        lat[3]
     );
     Ok(())
 }

@@ -206,10 +206,10 @@ pub fn table(r: &Report) -> String {
             },
         ),
     ]);
-    if let Some([p50, p99, max]) = r.latency_ms {
+    if let Some([p50, p99, p999, max]) = r.latency_ms {
         rows.push((
-            "update p50/p99/max (ms)".into(),
-            format!("{p50:.3} / {p99:.3} / {max:.3}"),
+            "update p50/p99/p99.9/max (ms)".into(),
+            format!("{p50:.3} / {p99:.3} / {p999:.3} / {max:.3}"),
         ));
     }
     if let Some(ms) = r.loop_closure_ms {
