@@ -298,17 +298,20 @@ impl EdgeSE3 {
     pub fn error_kind(&self) -> Se3Error {
         self.kind
     }
-    /// The rotation part of the error of a q_E with qw ≥ 0, and its
-    /// derivative by the rotation part of a right increment of E (which
-    /// [`crate::Variable::oplus`] scales by 2: Δ = Exp(ρ, 2·δ)).
-    fn rotation_error(&self, q: &nalgebra::Quaternion<f64>) -> (Vector3<f64>, Matrix3<f64>) {
-        let v = Vector3::new(q.i, q.j, q.k);
+    /// The rotation part of the error of a q_E with qw ≥ 0.
+    fn rotation_error(&self, q: &nalgebra::Quaternion<f64>) -> Vector3<f64> {
         match self.kind {
-            Se3Error::G2o => (v, Matrix3::identity() * q.w + skew(&v)),
-            Se3Error::Logmap => {
-                let phi = rotation_log(q);
-                (phi, right_jacobian_inverse(&phi) * 2.0)
-            }
+            Se3Error::G2o => Vector3::new(q.i, q.j, q.k),
+            Se3Error::Logmap => rotation_log(q),
+        }
+    }
+    /// The derivative of that rotation error `r` by the rotation part of a
+    /// right increment of E (which [`crate::Variable::oplus`] scales by 2:
+    /// Δ = Exp(ρ, 2·δ)).
+    fn rotation_derivative(&self, q: &nalgebra::Quaternion<f64>, r: &Vector3<f64>) -> Matrix3<f64> {
+        match self.kind {
+            Se3Error::G2o => Matrix3::identity() * q.w + skew(r),
+            Se3Error::Logmap => right_jacobian_inverse(r) * 2.0,
         }
     }
 }
@@ -320,7 +323,7 @@ impl BinaryEdge<6, 6, 6> for EdgeSE3 {
 
     fn error(&self, xi: &SE3, xj: &SE3) -> Vector6<f64> {
         let e = self.inverse.compose(&xi.between(xj));
-        let (r, _) = self.rotation_error(&canonical(&e.q));
+        let r = self.rotation_error(&canonical(&e.q));
         Vector6::new(e.t.x, e.t.y, e.t.z, r.x, r.y, r.z)
     }
 
@@ -339,7 +342,9 @@ impl BinaryEdge<6, 6, 6> for EdgeSE3 {
     fn linearize(&self, xi: &SE3, xj: &SE3) -> Linearized<6, 6, 6> {
         let b = xi.between(xj);
         let e = self.inverse.compose(&b);
-        let (r, d) = self.rotation_error(&canonical(&e.q));
+        let q = canonical(&e.q);
+        let r = self.rotation_error(&q);
+        let d = self.rotation_derivative(&q, &r);
         let re = e.rotation();
         let rbt = b.rotation().transpose();
         let re_rbt = re * rbt;

@@ -60,7 +60,7 @@ impl Optimizer {
         let mut summary = match init {
             Initialization::File => self.iterate(graph, init, on_iteration)?,
             Initialization::Auto => {
-                let (summary, file_start) = self.auto(graph, on_iteration)?;
+                let (summary, file_start) = self.auto(graph, &before, on_iteration)?;
                 entry_chi2 = Some(file_start);
                 summary
             }
@@ -85,13 +85,14 @@ impl Optimizer {
         Ok(summary)
     }
 
-    /// [`Initialization::Auto`]; also returns χ² at the graph's values.
+    /// [`Initialization::Auto`] from the graph's values, `initial`; also
+    /// returns χ² there.
     fn auto(
         &mut self,
         graph: &mut Graph,
+        initial: &[f64],
         on_iteration: &mut dyn FnMut(&IterationStats),
     ) -> Result<(Summary, f64), SolveError> {
-        let initial = graph.values().params().to_vec();
         let cap = self.config().max_iterations;
         let budget = cap.min(AUTO_TRUSTED_ITERATIONS);
         let file = self.run(graph, Initialization::File, None, budget, on_iteration)?;
@@ -107,7 +108,7 @@ impl Optimizer {
         // A failure from a chordal start only rules that start out.
         let keep = anchors(graph, &self.config().gauge)?;
         for start in [Initialization::Chordal, Initialization::ChordalIsotropic] {
-            graph.values_mut().params_mut().copy_from_slice(&initial);
+            graph.values_mut().params_mut().copy_from_slice(initial);
             // A graph without poses has no chordal start but its own values.
             let moved = chordal_initialize_holding(graph, weights(start), &keep)
                 .is_ok_and(|report| report.poses + report.landmarks > 0);
