@@ -2,9 +2,9 @@
 //!
 //! `cargo run --release --example track_plot -- TRACK_FILE OUT.svg|OUT.png`
 
+use cairn::fs_tools::Track;
+use cairn::fs_tools::course::Course;
 use cairn::plot::{MapPlot, draw};
-use cairn::slam::Track;
-use cairn::slam::course::Course;
 use std::path::PathBuf;
 
 fn main() -> Result<(), Box<dyn std::error::Error>> {

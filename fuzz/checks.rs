@@ -2,12 +2,12 @@
 //! targets (`fuzz_targets/`) and by the workspace's test that replays the
 //! corpora on stable Rust (`tests/fuzz_corpora.rs`).
 
+use cairn_fs_tools::Track;
+use cairn_fs_tools::course::Course;
 use cairn_g2o::ReadOptions;
-use cairn_slam::Track;
-use cairn_slam::course::Course;
 use cairn_slam::frontend::FrontEndConfig;
 use cairn_slam::log::{Log, ScanLimits, to_jsonl};
-use cairn_slam::track::{map_from_csv, map_to_csv};
+use cairn_slam::map::{map_from_csv, map_to_csv};
 
 /// The g2o reader on arbitrary bytes: it returns a graph or a typed error,
 /// never panics, and what it reads writes back to text that reads again to

@@ -27,7 +27,7 @@ import tempfile
 HERE = os.path.dirname(os.path.abspath(__file__))
 ROOT = os.path.dirname(HERE)
 
-# The simulator's presets (slam-frontend/src/sim.rs) and the front end's
+# The simulator's presets (fs-tools/src/sim.rs) and the front end's
 # model (frontend/config.rs, FINAL_GATE): range σ = a + b·r, bearing σ,
 # false positives per scan.
 PRESETS = {"standard": (0.05, 0.01, math.radians(0.5), 0.3),

@@ -25,7 +25,7 @@ fn s(p: &Path) -> &str {
 fn simulate_map_and_evaluate_a_random_track() {
     let dir = temp_dir("demo");
     // Seed 1 is the known failure of place recognition (see
-    // slam-frontend/tests/slam.rs); the demo in the README uses seed 2.
+    // fs-tools/tests/slam.rs); the demo in the README uses seed 2.
     let o = cairn(&["fs-sim", "--seed", "2", "-o", s(&dir)]);
     assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
     let (map, traj, assoc, timing) = (

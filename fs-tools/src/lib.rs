@@ -1,13 +1,26 @@
-//! Tools around Cairn's cone-SLAM front end that a car does not run:
-//! importers that turn real landmark-SLAM recordings into the log and
-//! ground-truth files of `shared/fs/FORMAT.md`.
+//! Tools around Cairn's cone-SLAM front end that a car does not run.
 //!
-//! - [`mrclam`]: the UTIAS Multi-Robot Cooperative Localization and Mapping
-//!   dataset (range/bearing landmark detections, commanded velocities, Vicon
-//!   ground truth).
+//! - [`track`], [`trackgen`], [`course`]: ground-truth tracks (EUFS, AMZ
+//!   fssim, EPFL), random rule-conforming tracks, and the centre line a car
+//!   drives;
+//! - [`sim`]: a seeded simulator writing the input log and its ground truth;
+//!   [`configs`]: what the estimators assume about its presets;
+//! - [`eval`], [`run`]: scoring a run against the truth;
+//! - [`mrclam`]: an importer of the UTIAS Multi-Robot Cooperative
+//!   Localization and Mapping dataset (range/bearing landmark detections,
+//!   commanded velocities, Vicon ground truth);
 //! - [`smoother`]: a batch smoother given the associations ([`batch`]: the
 //!   run as one graph), the upper bound of what a front end can map from a log.
 
 pub mod batch;
+pub mod configs;
+pub mod course;
+pub mod eval;
 pub mod mrclam;
+pub mod run;
+pub mod sim;
 pub mod smoother;
+pub mod track;
+pub mod trackgen;
+
+pub use track::{Track, TrackKind};

@@ -23,9 +23,9 @@
 use cairn_core::SE2;
 use cairn_core::se2::normalize_angle;
 use cairn_slam::Color;
+use cairn_slam::Cone;
 use cairn_slam::files::{Association, StampedPose};
 use cairn_slam::log::{Detection, Record};
-use cairn_slam::track::Cone;
 use nalgebra::{Matrix2, Vector2};
 use std::collections::HashMap;
 use std::path::{Path, PathBuf};

@@ -11,11 +11,11 @@
 
 use crate::batch::{Batch, BatchSighting};
 use cairn_core::{Graph, GraphError, SE2};
+use cairn_slam::Cone;
 use cairn_slam::files::{Association, StampedPose};
 use cairn_slam::frontend::{FrontEndConfig, OptimiseError, nearest_information};
 use cairn_slam::log::Record;
 use cairn_slam::motion::Odometry;
-use cairn_slam::track::Cone;
 use cairn_solvers::{Initialization, Summary};
 use nalgebra::Vector2;
 use std::collections::HashMap;

@@ -1,7 +1,7 @@
 //! The MRCLAM importer on slices of Dataset 6 and on broken folders. The
 //! golden values were read by hand from the dataset's files.
 
-#[path = "../../slam-frontend/tests/common/shared.rs"]
+#[path = "common/shared.rs"]
 mod shared;
 
 use cairn_fs_tools::mrclam::{Counts, MrclamError, Options, import};

@@ -1,24 +1,26 @@
 //! The batch smoother given the associations, on simulated runs whose truth
 //! is known exactly.
 
+use cairn_fs_tools::configs::assumed_config;
+use cairn_fs_tools::eval::evaluate;
+use cairn_fs_tools::sim::{Preset, SimConfig, simulate};
 use cairn_fs_tools::smoother::{SmoothError, smooth};
+use cairn_fs_tools::trackgen::{TrackRules, random_track};
 use cairn_slam::estimator::EstimatorKind;
-use cairn_slam::eval::evaluate;
 use cairn_slam::files::Association;
 use cairn_slam::frontend::FrontEndConfig;
 use cairn_slam::frontend::association::AssociationMethod;
-use cairn_slam::sim::{Preset, SimConfig, simulate};
-use cairn_slam::trackgen::{TrackRules, random_track};
 
 #[test]
 fn the_true_associations_give_the_map_to_centimetres() {
     let (track, course) = random_track(2, &TrackRules::default());
     let preset = Preset::standard();
-    let config = FrontEndConfig::for_preset(
-        &preset,
+    let config = assumed_config(
+        preset.name,
         AssociationMethod::MaximumLikelihood,
         EstimatorKind::Graph,
-    );
+    )
+    .expect("the preset has a shipped config");
     for seed in [1, 2] {
         let sim = simulate(
             &track,

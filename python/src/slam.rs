@@ -2,15 +2,17 @@
 //! and the simulator writing a run.
 
 use crate::arrays::rows;
-use cairn_slam::course::Course;
+use cairn_fs_tools::configs::assumed_config;
+use cairn_fs_tools::course::Course;
+use cairn_fs_tools::run::run_log;
+use cairn_fs_tools::sim::{Preset, SimConfig, simulate};
+use cairn_fs_tools::track::Track;
+use cairn_fs_tools::trackgen::{TrackRules, random_track};
 use cairn_slam::estimator::{EstimatorBuilder, EstimatorKind};
 use cairn_slam::frontend::FrontEndConfig;
 use cairn_slam::frontend::association::AssociationMethod;
 use cairn_slam::log::{Log, ScanLimits};
-use cairn_slam::run::run_log;
-use cairn_slam::sim::{Preset, SimConfig, simulate};
-use cairn_slam::track::{Track, TrackError};
-use cairn_slam::trackgen::{TrackRules, random_track};
+use cairn_slam::map::MapError;
 use numpy::IntoPyArray;
 use numpy::ndarray::Array2;
 use pyo3::exceptions::{PyOSError, PyValueError};
@@ -66,7 +68,7 @@ pub fn fs_slam<'py>(
             FrontEndConfig::from_toml(&text)
                 .map_err(|e| PyValueError::new_err(format!("{}: {e}", path.display())))?
         }
-        None => FrontEndConfig::for_preset(&Preset::standard(), method, kind),
+        None => assumed_config("standard", method, kind).expect("the preset has a shipped config"),
     };
     settings.association = method;
     let bytes = read(&log_path)?;
@@ -138,7 +140,7 @@ pub fn fs_sim(
     let (track, course) = match &track {
         Some(path) => {
             let track = Track::load(path).map_err(|e| match e {
-                TrackError::Io { .. } => PyOSError::new_err(e.to_string()),
+                MapError::Io { .. } => PyOSError::new_err(e.to_string()),
                 _ => PyValueError::new_err(format!("{}: {e}", path.display())),
             })?;
             let course = Course::from_track(&track)

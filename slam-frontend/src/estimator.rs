@@ -8,8 +8,8 @@ use crate::filter::ekf::EkfSlam;
 use crate::filter::fastslam::{FastSlam, ParticleConfig, Version};
 use crate::frontend::{FrontEndConfig, GraphSlam, Mode, OptimiseError, Timing};
 use crate::log::Record;
+use crate::map::Cone;
 use crate::points::{Clustered, PointCloudConfig};
-use crate::track::Cone;
 
 /// A SLAM estimator fed one log record at a time.
 pub trait Estimator {

@@ -2,7 +2,7 @@
 //! into the relative motion since the last scan and its covariance.
 
 use cairn_core::SE2;
-use nalgebra::{Matrix2, Matrix3, SMatrix};
+use nalgebra::{Matrix2, Matrix3, SMatrix, Vector2};
 
 /// How odometry turns into a yaw rate.
 #[derive(Clone, Copy, Debug, PartialEq, serde::Serialize, serde::Deserialize)]
@@ -123,7 +123,7 @@ impl Odometry {
             return;
         }
         let (v, omega) = (v * scale, omega - bias);
-        let step = crate::sim::integrate(&SE2::identity(), v, omega, dt);
+        let step = integrate(&SE2::identity(), v, omega, dt);
         // Covariance of delta ∘ step: F with respect to delta, and the
         // step's own covariance rotated into delta's frame.
         let r = self.delta.rotation();
@@ -244,6 +244,18 @@ pub fn compose_jacobians(pose: &SE2, delta: &SE2) -> (Matrix3<f64>, Matrix3<f64>
 /// The 90° rotation: d R(θ)/dθ = skew · R(θ).
 fn skew() -> Matrix2<f64> {
     Matrix2::new(0.0, -1.0, 1.0, 0.0)
+}
+
+/// Exact integration of a unicycle with constant speed and yaw rate.
+pub fn integrate(pose: &SE2, v: f64, yaw_rate: f64, dt: f64) -> SE2 {
+    let dth = yaw_rate * dt;
+    let local = if dth.abs() < 1e-9 {
+        Vector2::new(v * dt, 0.0)
+    } else {
+        let r = v / yaw_rate;
+        Vector2::new(r * dth.sin(), r * (1.0 - dth.cos()))
+    };
+    pose.compose(&SE2::new(local.x, local.y, dth))
 }
 
 #[cfg(test)]

@@ -11,8 +11,8 @@ use crate::estimator::Estimator;
 use crate::files::{Association, StampedPose};
 use crate::frontend::{Mode, MotionModel, Timing};
 use crate::log::{Detection, Record};
+use crate::map::Cone;
 use crate::motion::{MotionNoise, Odometry};
-use crate::track::Cone;
 use cairn_core::{DisjointSets, SE2};
 use nalgebra::{DMatrix, DVector, Matrix2, Matrix3, Vector2, Vector3};
 

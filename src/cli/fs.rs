@@ -3,18 +3,18 @@
 mod settings;
 
 use super::{CliError, bad_input, write_output};
-use cairn::slam::Track;
-use cairn::slam::course::Course;
+use cairn::fs_tools::Track;
+use cairn::fs_tools::course::Course;
+use cairn::fs_tools::eval::latency_ms;
+use cairn::fs_tools::run::run_log;
+use cairn::fs_tools::sim::{Preset, SimConfig, SimConfigError, point_clouds, simulate};
+use cairn::fs_tools::trackgen::{TrackRules, random_track};
 use cairn::slam::estimator::{EstimatorBuilder, EstimatorKind};
-use cairn::slam::eval::latency_ms;
 use cairn::slam::files;
 use cairn::slam::log::{Log, Record, ScanLimits};
+use cairn::slam::map::MapError;
+use cairn::slam::map::{map_from_csv, map_to_csv};
 use cairn::slam::points::PointCloudConfig;
-use cairn::slam::run::run_log;
-use cairn::slam::sim::{Preset, SimConfig, SimConfigError, point_clouds, simulate};
-use cairn::slam::track::TrackError;
-use cairn::slam::track::{map_from_csv, map_to_csv};
-use cairn::slam::trackgen::{TrackRules, random_track};
 use clap::Args;
 use settings::{rejection_warning, slam_config};
 use std::path::{Path, PathBuf};
@@ -181,9 +181,9 @@ pub(super) fn read_text(path: &Path) -> Result<String, CliError> {
 }
 
 /// A track file's error: unreadable, or malformed.
-fn track_error(path: &Path) -> impl FnOnce(TrackError) -> CliError + '_ {
+fn track_error(path: &Path) -> impl FnOnce(MapError) -> CliError + '_ {
     move |e| match e {
-        TrackError::Io { .. } => CliError::io(e.to_string()),
+        MapError::Io { .. } => CliError::io(e.to_string()),
         _ => CliError::input(format!("{}: {e}", path.display())),
     }
 }

@@ -2,11 +2,11 @@
 
 use super::fs::{TRUTH_ASSOC, TRUTH_MAP, TRUTH_TRAJ, read_text};
 use super::{bad_input, file_name};
+use cairn::fs_tools::eval::{Report, evaluate, latency_ms, position_errors};
 use cairn::plot::{MapPlot, draw};
 use cairn::slam::Cone;
-use cairn::slam::eval::{Report, evaluate, latency_ms, position_errors};
 use cairn::slam::files::{self, StampedPose};
-use cairn::slam::track::map_from_csv;
+use cairn::slam::map::map_from_csv;
 use clap::Args;
 use std::path::{Path, PathBuf};
 

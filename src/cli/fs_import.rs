@@ -7,7 +7,7 @@ use cairn::fs_tools::{mrclam, smoother};
 use cairn::slam::files;
 use cairn::slam::frontend::FrontEndConfig;
 use cairn::slam::log::{Log, to_jsonl};
-use cairn::slam::track::map_to_csv;
+use cairn::slam::map::map_to_csv;
 use clap::{Args, Subcommand};
 use std::path::PathBuf;
 

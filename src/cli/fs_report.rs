@@ -5,15 +5,15 @@
 use super::fs_eval::plot_run;
 use super::fs_targets::{Summary, TrackSummary, targets_section};
 use super::progress::Progress;
-use cairn::slam::Track;
-use cairn::slam::course::Course;
+use cairn::fs_tools::Track;
+use cairn::fs_tools::configs::assumed_config;
+use cairn::fs_tools::course::Course;
+use cairn::fs_tools::eval::Report;
+use cairn::fs_tools::run::run_and_score;
+use cairn::fs_tools::sim::{Preset, SimConfig, simulate};
+use cairn::fs_tools::trackgen::{TrackRules, random_track};
 use cairn::slam::estimator::EstimatorKind;
-use cairn::slam::eval::Report;
-use cairn::slam::frontend::FrontEndConfig;
 use cairn::slam::frontend::association::AssociationMethod;
-use cairn::slam::run::run_and_score;
-use cairn::slam::sim::{Preset, SimConfig, simulate};
-use cairn::slam::trackgen::{TrackRules, random_track};
 use clap::Args;
 use rayon::prelude::*;
 use std::fmt::Write as _;
@@ -88,7 +88,8 @@ pub fn run(a: ReportArgs) -> Result<(), super::CliError> {
             let sim = simulate(track, course, &config);
             let (slam, report) = run_and_score(
                 &sim,
-                FrontEndConfig::for_preset(preset, *method, EstimatorKind::Graph),
+                assumed_config(preset.name, *method, EstimatorKind::Graph)
+                    .expect("the preset has a shipped config"),
             );
             for warning in &report.warnings {
                 let name = &tracks[*t].0.name;
@@ -208,11 +209,12 @@ pub fn run(a: ReportArgs) -> Result<(), super::CliError> {
         let sim = simulate(track, course, &config);
         let (slam, _) = run_and_score(
             &sim,
-            FrontEndConfig::for_preset(
-                &config.preset,
+            assumed_config(
+                config.preset.name,
                 AssociationMethod::Tracking,
                 EstimatorKind::Graph,
-            ),
+            )
+            .expect("the preset has a shipped config"),
         );
         let file = format!("{}.svg", track.name);
         plot_run(
@@ -246,7 +248,7 @@ pub fn load_tracks(dir: &std::path::Path, random: u64) -> Result<(Tracks, Vec<St
     files.sort();
     for path in files {
         let track = Track::load(&path).map_err(|e| format!("{}: {e}", path.display()))?;
-        if track.kind != cairn::slam::TrackKind::Loop {
+        if track.kind != cairn::fs_tools::TrackKind::Loop {
             continue;
         }
         match Course::from_track(&track) {

@@ -3,7 +3,7 @@
 
 use super::fs_report::Run;
 use Limit::{AtLeast, AtMost};
-use cairn::slam::eval::Report;
+use cairn::fs_tools::eval::Report;
 use cairn::slam::frontend::association::AssociationMethod;
 use std::fmt::Write;
 

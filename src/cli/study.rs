@@ -7,16 +7,16 @@
 use super::fs_report::load_tracks;
 use super::progress::Progress;
 use super::study_sweeps::{noise_study, particle_study, plot_in_report, rmse_by_distance};
+use cairn::fs_tools::Track;
+use cairn::fs_tools::configs::assumed_config;
+use cairn::fs_tools::course::Course;
+use cairn::fs_tools::eval::Report;
+use cairn::fs_tools::run::run_estimator;
+use cairn::fs_tools::sim::{Preset, SimConfig, Simulation, simulate};
+use cairn::fs_tools::trackgen::{TrackRules, random_track};
 use cairn::plot::LinePlot;
-use cairn::slam::Track;
-use cairn::slam::course::Course;
 use cairn::slam::estimator::{EstimatorBuilder, EstimatorKind};
-use cairn::slam::eval::Report;
-use cairn::slam::frontend::FrontEndConfig;
 use cairn::slam::frontend::association::AssociationMethod;
-use cairn::slam::run::run_estimator;
-use cairn::slam::sim::{Preset, SimConfig, Simulation, simulate};
-use cairn::slam::trackgen::{TrackRules, random_track};
 use clap::Args;
 use rayon::prelude::*;
 use std::fmt::Write as _;
@@ -108,8 +108,11 @@ pub fn run(a: StudyArgs) -> Result<(), super::CliError> {
         .par_iter()
         .map(|(t, preset, kind, method, seed)| {
             let sim = simulate_on(&tracks[*t], preset, *seed);
-            let mut builder =
-                EstimatorBuilder::new(*kind, FrontEndConfig::for_preset(preset, *method, *kind));
+            let mut builder = EstimatorBuilder::new(
+                *kind,
+                assumed_config(preset.name, *method, *kind)
+                    .expect("the preset has a shipped config"),
+            );
             builder.particles = a.particles;
             builder.seed = *seed;
             let (slam, report) = run_estimator(&sim, &builder);

@@ -4,16 +4,17 @@
 use super::fs_eval::plot_run;
 use super::progress::Progress;
 use super::study::simulate_on;
+use cairn::fs_tools::Track;
+use cairn::fs_tools::configs::assumed_config;
+use cairn::fs_tools::course::Course;
+use cairn::fs_tools::eval::{Report, evaluate};
+use cairn::fs_tools::run::run_estimator;
+use cairn::fs_tools::sim::{Preset, Simulation};
 use cairn::plot::{LinePlot, draw_lines};
-use cairn::slam::Track;
-use cairn::slam::course::Course;
 use cairn::slam::estimator::{EstimatorBuilder, EstimatorKind};
-use cairn::slam::eval::{Report, evaluate};
 use cairn::slam::frontend::FrontEndConfig;
 use cairn::slam::frontend::association::AssociationMethod;
 use cairn::slam::log::Record;
-use cairn::slam::run::run_estimator;
-use cairn::slam::sim::{Preset, Simulation};
 use rayon::prelude::*;
 use std::collections::HashMap;
 use std::fmt::Write as _;
@@ -37,7 +38,8 @@ pub(super) fn rmse_by_distance(
     }
     let mut builder = EstimatorBuilder::new(
         kind,
-        FrontEndConfig::for_preset(&Preset::standard(), AssociationMethod::Tracking, kind),
+        assumed_config("standard", AssociationMethod::Tracking, kind)
+            .expect("the preset has a shipped config"),
     );
     builder.particles = particles;
     let mut slam = builder.build();
@@ -96,7 +98,8 @@ pub(super) fn particle_study(
         .map(|&(kind, n, seed)| {
             let mut builder = EstimatorBuilder::new(
                 kind,
-                FrontEndConfig::for_preset(&Preset::standard(), AssociationMethod::Tracking, kind),
+                assumed_config("standard", AssociationMethod::Tracking, kind)
+                    .expect("the preset has a shipped config"),
             );
             builder.particles = n;
             builder.seed = seed;
@@ -188,7 +191,8 @@ pub(super) fn noise_study(
         .map(|&(k, seed)| {
             let sim = simulate_on(track, preset, seed);
             let mut config: FrontEndConfig =
-                FrontEndConfig::for_preset(preset, AssociationMethod::Tracking, EstimatorKind::Ekf);
+                assumed_config(preset.name, AssociationMethod::Tracking, EstimatorKind::Ekf)
+                    .expect("the preset has a shipped config");
             let f = k.sqrt();
             config.range_sigma *= f;
             config.range_sigma_relative *= f;

@@ -26,9 +26,9 @@ pub(crate) use optimise::MERGE_RADIUS;
 
 use crate::files::{Association, StampedPose};
 use crate::log::{Detection, Record};
+use crate::map::Cone;
 use crate::motion::{Odometry, compose_with_cov};
 use crate::sighting::{ColorRate, MIN_LOOP, Sighting};
-use crate::track::Cone;
 use association::{Correlation, associate};
 use cairn_core::SE2;
 use nalgebra::{Matrix2, Matrix3, Vector2};
@@ -490,6 +490,16 @@ impl GraphSlam {
                 }
             })
             .collect()
+    }
+
+    /// Every sighting of a landmark of the map, as the graph holds it: the
+    /// scan's pose index and the detection in the vehicle frame. A detection
+    /// is one sighting, however often re-matching moved it.
+    pub fn sightings(&self) -> impl Iterator<Item = (usize, Vector2<f64>)> + '_ {
+        self.observations
+            .iter()
+            .filter(|o| self.in_map(self.resolve(o.landmark)))
+            .map(|o| (o.pose, o.z))
     }
 
     /// The pose of every scan.

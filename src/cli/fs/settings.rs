@@ -3,6 +3,7 @@
 //! looks noisier than assumed.
 
 use super::{CliError, SlamArgs, bad_input, read_text};
+use cairn::fs_tools::configs::assumed_config;
 use cairn::slam::estimator::EstimatorKind;
 use cairn::slam::frontend::association::AssociationMethod;
 use cairn::slam::frontend::{FrontEndConfig, MotionModel};
@@ -26,14 +27,12 @@ pub(super) fn slam_config(a: &SlamArgs, kind: EstimatorKind) -> Result<FrontEndC
             config
         }
         None => {
-            let text = match a.noise.as_deref().unwrap_or("standard") {
-                "standard" => include_str!("../../../configs/standard.toml"),
-                "hard" => include_str!("../../../configs/hard.toml"),
-                _ => return Err(CliError::usage("--noise must be standard or hard")),
-            };
-            let mut config = FrontEndConfig::from_toml(text).map_err(|e| e.to_string())?;
+            let preset = a.noise.as_deref().unwrap_or("standard");
+            let mut config = assumed_config(preset, AssociationMethod::Tracking, kind)
+                .ok_or_else(|| CliError::usage("--noise must be standard or hard"))?;
             describe_detector(&mut config, a)?;
-            config.gate = FrontEndConfig::preset_gate(kind, config.false_positives);
+            // The gate follows the false positives `--false-positives` may have changed.
+            config.gate = FrontEndConfig::gate_for(kind, config.false_positives);
             config
         }
     };

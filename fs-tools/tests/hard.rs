@@ -2,14 +2,15 @@
 //! biases that drift a lap metres off. Runs on random tracks, so they need
 //! nothing from `../shared`.
 
+use cairn_fs_tools::configs::assumed_config;
+use cairn_fs_tools::eval::{Report, association_accuracy};
+use cairn_fs_tools::run::run_and_score;
+use cairn_fs_tools::sim::{Preset, SimConfig, Simulation, simulate};
+use cairn_fs_tools::trackgen::{TrackRules, random_track};
 use cairn_slam::estimator::EstimatorKind;
-use cairn_slam::eval::{Report, association_accuracy};
 use cairn_slam::frontend::association::AssociationMethod;
 use cairn_slam::frontend::{FrontEndConfig, GraphSlam};
 use cairn_slam::log::Record;
-use cairn_slam::run::run_and_score;
-use cairn_slam::sim::{Preset, SimConfig, Simulation, simulate};
-use cairn_slam::trackgen::{TrackRules, random_track};
 
 /// A simulated run of random track `track` with the `hard` preset, and the
 /// front end's settings for it (tracking association).
@@ -21,8 +22,12 @@ fn hard_sim(track: u64, seed: u64) -> (Simulation, FrontEndConfig) {
 fn hard_sim_on(track: u64, seed: u64, rules: &TrackRules) -> (Simulation, FrontEndConfig) {
     let (track, course) = random_track(track, rules);
     let preset = Preset::hard();
-    let config =
-        FrontEndConfig::for_preset(&preset, AssociationMethod::Tracking, EstimatorKind::Graph);
+    let config = assumed_config(
+        preset.name,
+        AssociationMethod::Tracking,
+        EstimatorKind::Graph,
+    )
+    .expect("the preset has a shipped config");
     let sim = simulate(
         &track,
         &course,

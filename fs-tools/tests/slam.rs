@@ -2,15 +2,16 @@
 
 mod common;
 
+use cairn_fs_tools::configs::assumed_config;
+use cairn_fs_tools::eval::{aligned_rms, association_accuracy, rigid_alignment};
+use cairn_fs_tools::run::run_and_score;
+use cairn_fs_tools::sim::{Preset, SimConfig, simulate};
+use cairn_fs_tools::trackgen::{TrackRules, random_track};
 use cairn_slam::estimator::EstimatorKind;
-use cairn_slam::eval::{aligned_rms, association_accuracy, rigid_alignment};
 use cairn_slam::files::Association;
 use cairn_slam::frontend::association::AssociationMethod;
 use cairn_slam::frontend::{FrontEndConfig, GraphSlam, Mode};
 use cairn_slam::log::Record;
-use cairn_slam::run::run_and_score;
-use cairn_slam::sim::{Preset, SimConfig, simulate};
-use cairn_slam::trackgen::{TrackRules, random_track};
 use common::simulate_seed;
 use nalgebra::{Rotation2, Vector2};
 
@@ -105,7 +106,7 @@ fn association_accuracy_counts_landmarks_by_majority() {
     assert!((acc - 0.8).abs() < 1e-12);
 }
 
-fn score(method: AssociationMethod, seed: u64) -> (GraphSlam, cairn_slam::eval::Report) {
+fn score(method: AssociationMethod, seed: u64) -> (GraphSlam, cairn_fs_tools::eval::Report) {
     let (track, course) = random_track(1, &TrackRules::default());
     let sim = simulate_seed(&track, &course, seed);
     let config = FrontEndConfig {
@@ -209,7 +210,7 @@ fn the_final_optimisation_refines_the_map_with_the_laps_on_the_fixed_map() {
         assert_eq!(slam.mode(), Mode::Localising, "seed {seed}");
         let scans = slam.trajectory().len();
         let rmse = |slam: &GraphSlam| {
-            let r = cairn_slam::eval::evaluate(
+            let r = cairn_fs_tools::eval::evaluate(
                 &sim.truth_map,
                 &slam.map(),
                 &sim.truth,
@@ -317,8 +318,12 @@ fn big_orange_pairs_stay_two(gap: f64, preset: Preset, seed: u64, tolerance: f64
             track.cones[j].position = p + gap * (q - p).normalize();
         }
     }
-    let config =
-        FrontEndConfig::for_preset(&preset, AssociationMethod::Tracking, EstimatorKind::Graph);
+    let config = assumed_config(
+        preset.name,
+        AssociationMethod::Tracking,
+        EstimatorKind::Graph,
+    )
+    .expect("the preset has a shipped config");
     let sim = simulate(
         &track,
         &course,
@@ -488,9 +493,9 @@ fn the_map_covariances_are_the_final_graphs_marginals_and_fit_its_errors() {
 
 #[test]
 fn the_map_scores_its_covariances_when_every_landmark_has_one() {
+    use cairn_fs_tools::eval::evaluate;
+    use cairn_slam::Cone;
     use cairn_slam::color::Color;
-    use cairn_slam::eval::evaluate;
-    use cairn_slam::track::Cone;
     use nalgebra::Matrix2;
     let truth = vec![
         Cone::new(0.0, 0.0, Color::Blue),

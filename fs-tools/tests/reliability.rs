@@ -4,8 +4,8 @@
 
 mod common;
 
-use cairn_slam::course::Course;
-use cairn_slam::track::Track;
+use cairn_fs_tools::course::Course;
+use cairn_fs_tools::track::Track;
 use std::path::PathBuf;
 
 fn reliability() -> Option<PathBuf> {
@@ -118,7 +118,7 @@ fn a_line_that_is_not_utf8_is_one_bad_line() {
 /// localisation 9.6 m off without a word) is refused with its line.
 #[test]
 fn a_map_with_negative_variances_is_refused() {
-    use cairn_slam::track::map_from_csv;
+    use cairn_slam::map::map_from_csv;
     let err =
         map_from_csv("tag,x,y,direction,x_variance,y_variance,xy_covariance\nblue,1,2,0,-1,-1,0\n")
             .unwrap_err()

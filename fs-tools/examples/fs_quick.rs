@@ -3,13 +3,13 @@
 //!
 //! `cargo run --release -p cairn-slam --example fs_quick -- [SEED] [METHOD] [TRACK_FILE] [PRESET]`
 
-use cairn_slam::Track;
-use cairn_slam::course::Course;
+use cairn_fs_tools::Track;
+use cairn_fs_tools::configs::assumed_config;
+use cairn_fs_tools::course::Course;
+use cairn_fs_tools::sim::{SimConfig, simulate};
+use cairn_fs_tools::trackgen::{TrackRules, random_track};
 use cairn_slam::estimator::EstimatorKind;
-use cairn_slam::frontend::FrontEndConfig;
 use cairn_slam::frontend::association::AssociationMethod;
-use cairn_slam::sim::{SimConfig, simulate};
-use cairn_slam::trackgen::{TrackRules, random_track};
 
 fn main() -> Result<(), Box<dyn std::error::Error>> {
     let args: Vec<String> = std::env::args().skip(1).collect();
@@ -28,8 +28,8 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     };
     let preset = args
         .get(3)
-        .and_then(|p| cairn_slam::sim::Preset::by_name(p))
-        .unwrap_or_else(cairn_slam::sim::Preset::standard);
+        .and_then(|p| cairn_fs_tools::sim::Preset::by_name(p))
+        .unwrap_or_else(cairn_fs_tools::sim::Preset::standard);
     let sim = simulate(
         &track,
         &course,
@@ -39,8 +39,9 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
             ..SimConfig::default()
         },
     );
-    let config = FrontEndConfig::for_preset(&preset, method, EstimatorKind::Graph);
-    let (slam, report) = cairn_slam::run::run_and_score(&sim, config);
+    let config = assumed_config(preset.name, method, EstimatorKind::Graph)
+        .expect("the preset has a shipped config");
+    let (slam, report) = cairn_fs_tools::run::run_and_score(&sim, config);
     println!(
         "{} ({:.0} m): closures {} mode {:?}\n{}",
         track.name,

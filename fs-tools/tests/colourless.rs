@@ -4,15 +4,15 @@
 
 mod common;
 
+use cairn_fs_tools::configs::assumed_config;
+use cairn_fs_tools::eval::Report;
+use cairn_fs_tools::run::run_estimator;
+use cairn_fs_tools::sim::Simulation;
+use cairn_fs_tools::trackgen::{TrackRules, random_track};
 use cairn_slam::Color;
 use cairn_slam::estimator::{EstimatorBuilder, EstimatorKind};
-use cairn_slam::eval::Report;
-use cairn_slam::frontend::FrontEndConfig;
 use cairn_slam::frontend::association::AssociationMethod;
 use cairn_slam::log::Record;
-use cairn_slam::run::run_estimator;
-use cairn_slam::sim::{Preset, Simulation};
-use cairn_slam::trackgen::{TrackRules, random_track};
 use common::simulate_seed;
 
 /// The log with every detection's colour `unknown`.
@@ -29,11 +29,8 @@ fn colourless(sim: &Simulation) -> Simulation {
 }
 
 fn run(sim: &Simulation, kind: EstimatorKind) -> Report {
-    let config = FrontEndConfig::for_preset(
-        &Preset::standard(),
-        AssociationMethod::MaximumLikelihood,
-        kind,
-    );
+    let config = assumed_config("standard", AssociationMethod::MaximumLikelihood, kind)
+        .expect("the preset has a shipped config");
     run_estimator(sim, &EstimatorBuilder::new(kind, config)).1
 }
 

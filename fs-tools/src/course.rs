@@ -1,9 +1,9 @@
 //! The line a simulated car drives: the centre line of a track, found from
 //! its ordered boundaries.
 
-use crate::color::Color;
 use crate::track::{Track, TrackKind};
 use cairn_core::SE2;
+use cairn_slam::Color;
 use nalgebra::Vector2;
 
 /// A polyline parameterised by arc length, closed for loop tracks.

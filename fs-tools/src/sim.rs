@@ -2,12 +2,14 @@
 //! track's centre line by pure pursuit, with a cone detector and odometry
 //! whose errors follow a named preset.
 
-use crate::color::Color;
 use crate::course::Course;
-use crate::files::{Association, StampedPose};
-use crate::log::{Detection, Record};
-use crate::track::{Cone, Track};
+use crate::track::Track;
 use cairn_core::SE2;
+use cairn_slam::Color;
+use cairn_slam::Cone;
+use cairn_slam::files::{Association, StampedPose};
+use cairn_slam::log::{Detection, Record};
+use cairn_slam::motion::integrate;
 use nalgebra::Vector2;
 use rand::rngs::StdRng;
 use rand::seq::SliceRandom;
@@ -243,15 +245,18 @@ impl Simulation {
     /// The run as the files of FORMAT.md: (file name, contents) of the log
     /// and its truth, in the layout `fs-eval --truth` reads.
     pub fn files(&self) -> [(&'static str, String); 4] {
-        use crate::files::{TRUTH_ASSOC, TRUTH_MAP, TRUTH_TRAJ};
+        use cairn_slam::files::{TRUTH_ASSOC, TRUTH_MAP, TRUTH_TRAJ};
         [
-            (crate::files::LOG, crate::log::to_jsonl(&self.log)),
-            (TRUTH_TRAJ, crate::files::trajectory_to_tum(&self.truth)),
+            (cairn_slam::files::LOG, cairn_slam::log::to_jsonl(&self.log)),
+            (
+                TRUTH_TRAJ,
+                cairn_slam::files::trajectory_to_tum(&self.truth),
+            ),
             (
                 TRUTH_ASSOC,
-                crate::files::associations_to_csv(&self.truth_associations),
+                cairn_slam::files::associations_to_csv(&self.truth_associations),
             ),
-            (TRUTH_MAP, crate::track::map_to_csv(&self.truth_map)),
+            (TRUTH_MAP, cairn_slam::map::map_to_csv(&self.truth_map)),
         ]
     }
 }
@@ -390,18 +395,6 @@ pub fn simulate(track: &Track, course: &Course, config: &SimConfig) -> Simulatio
         truth_associations,
         truth_map: track.cones.clone(),
     }
-}
-
-/// Exact integration of a unicycle with constant speed and yaw rate.
-pub fn integrate(pose: &SE2, v: f64, yaw_rate: f64, dt: f64) -> SE2 {
-    let dth = yaw_rate * dt;
-    let local = if dth.abs() < 1e-9 {
-        Vector2::new(v * dt, 0.0)
-    } else {
-        let r = v / yaw_rate;
-        Vector2::new(r * dth.sin(), r * (1.0 - dth.cos()))
-    };
-    pose.compose(&SE2::new(local.x, local.y, dth))
 }
 
 /// Tracker identities: an object keeps its id while seen in recent scans.

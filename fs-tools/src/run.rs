@@ -1,12 +1,12 @@
 //! A log or a simulated run end to end, as the command line, the report,
 //! the study and the tests use it.
 
-use crate::estimator::{Estimator, EstimatorBuilder};
 use crate::eval::{Report, evaluate, latency_ms};
-use crate::frontend::{FrontEndConfig, GraphSlam, OptimiseError};
-use crate::log::{Log, Record};
-use crate::points::PointCloudConfig;
 use crate::sim::Simulation;
+use cairn_slam::estimator::{Estimator, EstimatorBuilder};
+use cairn_slam::frontend::{FrontEndConfig, GraphSlam, OptimiseError};
+use cairn_slam::log::{Log, Record};
+use cairn_slam::points::PointCloudConfig;
 
 /// Runs the estimator `builder` describes over a whole log and finishes it.
 /// A log of point clouds goes through the clustering front end first (with
@@ -96,7 +96,7 @@ pub fn score(sim: &Simulation, slam: &dyn Estimator) -> Report {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::frontend::FrontEndConfig;
+    use cairn_slam::frontend::FrontEndConfig;
 
     /// A failed final optimisation reaches the report instead of stderr.
     #[test]

@@ -2,15 +2,17 @@
 
 mod common;
 
-use cairn_slam::course::Course;
+use cairn_fs_tools::configs::assumed_config;
+use cairn_fs_tools::course::Course;
+use cairn_fs_tools::eval::Report;
+use cairn_fs_tools::run::run_and_score;
+use cairn_fs_tools::sim::{Preset, SimConfig, simulate};
+use cairn_fs_tools::trackgen::{TrackRules, random_track};
+use cairn_fs_tools::{Track, TrackKind};
+use cairn_slam::Color;
 use cairn_slam::estimator::EstimatorKind;
-use cairn_slam::eval::Report;
+use cairn_slam::frontend::GraphSlam;
 use cairn_slam::frontend::association::AssociationMethod;
-use cairn_slam::frontend::{FrontEndConfig, GraphSlam};
-use cairn_slam::run::run_and_score;
-use cairn_slam::sim::{Preset, SimConfig, simulate};
-use cairn_slam::trackgen::{TrackRules, random_track};
-use cairn_slam::{Color, Track, TrackKind};
 use nalgebra::Vector2;
 use std::path::PathBuf;
 
@@ -141,7 +143,8 @@ fn shared_run(
         ..SimConfig::default()
     };
     let sim = simulate(&track, &course, &config);
-    let frontend = FrontEndConfig::for_preset(&preset, method, EstimatorKind::Graph);
+    let frontend = assumed_config(preset.name, method, EstimatorKind::Graph)
+        .expect("the preset has a shipped config");
     let (slam, report) = run_and_score(&sim, frontend);
     println!("{file} seed {seed}: {report:?}");
     Some((track, slam, report))

@@ -3,9 +3,9 @@
 
 pub mod shared;
 
-use cairn_slam::course::Course;
-use cairn_slam::sim::{SimConfig, Simulation, simulate};
-use cairn_slam::track::Track;
+use cairn_fs_tools::course::Course;
+use cairn_fs_tools::sim::{SimConfig, Simulation, simulate};
+use cairn_fs_tools::track::Track;
 
 /// A run of the default simulation (two laps, `standard`) of `track` with
 /// noise `seed`.

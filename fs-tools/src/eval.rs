@@ -2,9 +2,9 @@
 //! without a best rigid alignment, overall and per colour), trajectory error
 //! (ATE), data-association accuracy, missed and phantom landmarks, latency.
 
-use crate::color::Color;
-use crate::files::{Association, StampedPose};
-use crate::track::Cone;
+use cairn_slam::Color;
+use cairn_slam::Cone;
+use cairn_slam::files::{Association, StampedPose};
 use nalgebra::{Matrix2, Vector2};
 use serde::Serialize;
 use std::collections::HashMap;
@@ -243,7 +243,7 @@ pub fn aligned_rms(a: &[Vector2<f64>], b: &[Vector2<f64>]) -> f64 {
 
 /// The rotation and translation minimising Σ‖R aᵢ + t − bᵢ‖².
 pub fn rigid_alignment(a: &[Vector2<f64>], b: &[Vector2<f64>]) -> (Matrix2<f64>, Vector2<f64>) {
-    crate::points::arun(a, b).unwrap_or_else(|| {
+    cairn_slam::points::arun(a, b).unwrap_or_else(|| {
         let n = a.len().min(b.len()).max(1) as f64;
         let mean = |s: &[Vector2<f64>]| s.iter().take(n as usize).sum::<Vector2<f64>>() / n;
         (Matrix2::identity(), mean(b) - mean(a))

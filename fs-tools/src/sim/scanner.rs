@@ -11,12 +11,12 @@ const BIG_CONE: (f64, f64) = (0.142, 0.505);
 /// return from the same objects (the true cones' visible surfaces, a small
 /// blob per false positive), plus points on the vehicle's own nose and far
 /// beyond the cones, which the point front end must remove. The truth
-/// associations then refer to the clusters [`crate::points::extract`] finds
+/// associations then refer to the clusters [`cairn_slam::points::extract`] finds
 /// with `points` (in its order), labelled by the object most of their points
 /// came from.
 pub fn point_clouds(
     sim: &Simulation,
-    points: &crate::points::PointCloudConfig,
+    points: &cairn_slam::points::PointCloudConfig,
     seed: u64,
 ) -> Simulation {
     let mut rng = StdRng::seed_from_u64(seed);
@@ -78,7 +78,10 @@ pub fn point_clouds(
             cloud.push([30.0 * c, 30.0 * s, 0.5]);
             origin.push(None);
         }
-        for (det, cluster) in crate::points::extract(&cloud, points).iter().enumerate() {
+        for (det, cluster) in cairn_slam::points::extract(&cloud, points)
+            .iter()
+            .enumerate()
+        {
             let mut votes: HashMap<Option<usize>, usize> = HashMap::new();
             for &i in &cluster.points {
                 *votes.entry(origin[i]).or_default() += 1;
@@ -118,7 +121,10 @@ fn cone_surface(
     let (base, height) = if color == Color::BigOrange {
         BIG_CONE
     } else {
-        (crate::points::CONE_RADIUS, crate::points::CONE_HEIGHT)
+        (
+            cairn_slam::points::CONE_RADIUS,
+            cairn_slam::points::CONE_HEIGHT,
+        )
     };
     let range = centre.norm().max(0.5);
     let sight = centre / range;

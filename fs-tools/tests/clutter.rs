@@ -3,14 +3,15 @@
 
 mod common;
 
-use cairn_slam::course::Course;
+use cairn_fs_tools::configs::assumed_config;
+use cairn_fs_tools::course::Course;
+use cairn_fs_tools::run::run_and_score;
+use cairn_fs_tools::sim::Preset;
+use cairn_fs_tools::track::Track;
+use cairn_fs_tools::trackgen::{TrackRules, random_track};
 use cairn_slam::estimator::EstimatorKind;
 use cairn_slam::frontend::FrontEndConfig;
 use cairn_slam::frontend::association::AssociationMethod;
-use cairn_slam::run::run_and_score;
-use cairn_slam::sim::Preset;
-use cairn_slam::track::Track;
-use cairn_slam::trackgen::{TrackRules, random_track};
 use common::simulate_seed;
 use nalgebra::Vector2;
 use rand::{Rng, SeedableRng, rngs::StdRng};
@@ -49,11 +50,12 @@ fn clutter_seen_only_from_near_the_range_limit_leaves_the_map_too() {
     // whose detections of one colour were matched to them while the others
     // started landmarks of their own, so that their colours look a cone's.
     let (track, course) = track_with_clutter(13.0..14.5);
-    let config = FrontEndConfig::for_preset(
-        &Preset::standard(),
+    let config = assumed_config(
+        "standard",
         AssociationMethod::MaximumLikelihood,
         EstimatorKind::Graph,
-    );
+    )
+    .expect("the preset has a shipped config");
     let mut phantoms = 0;
     for seed in 0..4 {
         let sim = simulate_seed(&track, &course, seed);
@@ -74,8 +76,12 @@ fn clutter_objects_beside_the_track_leave_the_map_at_the_end() {
     // judged; the run's colours and detections together settle them.
     let (track, course) = track_with_clutter(3.0..7.0);
     let preset = Preset::standard();
-    let config =
-        FrontEndConfig::for_preset(&preset, AssociationMethod::Tracking, EstimatorKind::Graph);
+    let config = assumed_config(
+        preset.name,
+        AssociationMethod::Tracking,
+        EstimatorKind::Graph,
+    )
+    .expect("the preset has a shipped config");
     // Phantoms and accuracy without and with the matching in hindsight,
     // which also judges clutter again on the colours it matched.
     let mut phantoms = [0, 0];

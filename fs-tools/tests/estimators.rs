@@ -2,16 +2,17 @@
 //! answers: a car standing still, a straight drive, and a simulated loop.
 
 use cairn_core::SE2;
+use cairn_fs_tools::eval::{Report, evaluate};
+use cairn_fs_tools::run::run_estimator;
+use cairn_fs_tools::sim::{SimConfig, simulate};
+use cairn_fs_tools::trackgen::{TrackRules, random_track};
 use cairn_slam::Cone;
 use cairn_slam::color::Color;
 use cairn_slam::estimator::{Estimator, EstimatorBuilder, EstimatorKind};
-use cairn_slam::eval::{Report, evaluate};
 use cairn_slam::files::{Association, StampedPose};
 use cairn_slam::frontend::{FrontEndConfig, Mode};
 use cairn_slam::log::{Detection, Record};
-use cairn_slam::run::run_estimator;
-use cairn_slam::sim::{SimConfig, integrate, simulate};
-use cairn_slam::trackgen::{TrackRules, random_track};
+use cairn_slam::motion::integrate;
 use nalgebra::Vector2;
 use rand::SeedableRng;
 use rand::rngs::StdRng;
@@ -341,8 +342,8 @@ fn every_estimator_closes_the_loop_of_a_random_track_and_localises() {
 
 #[test]
 fn point_clouds_run_end_to_end_through_clustering() {
+    use cairn_fs_tools::sim::point_clouds;
     use cairn_slam::points::PointCloudConfig;
-    use cairn_slam::sim::point_clouds;
     let (track, course) = random_track(1, &TrackRules::default());
     let sim = simulate(&track, &course, &SimConfig::default());
     let points = PointCloudConfig::default();

@@ -1,14 +1,14 @@
 //! The FORMAT.md files: round trips, bad input with line numbers, `--skip-bad`.
 
 use cairn_core::SE2;
+use cairn_fs_tools::sim::{SimConfig, simulate};
+use cairn_fs_tools::trackgen::{TrackRules, random_track};
 use cairn_slam::files::{
     Association, StampedPose, associations_from_csv, associations_to_csv, trajectory_from_tum,
     trajectory_to_tum,
 };
 use cairn_slam::log::{Log, Record, to_jsonl};
-use cairn_slam::sim::{SimConfig, simulate};
-use cairn_slam::track::{map_from_csv, map_to_csv};
-use cairn_slam::trackgen::{TrackRules, random_track};
+use cairn_slam::map::{map_from_csv, map_to_csv};
 use cairn_slam::{Color, Cone};
 
 #[test]

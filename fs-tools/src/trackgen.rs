@@ -1,10 +1,11 @@
 //! Random tracks that follow the Formula Student rules: a closed loop of
 //! 200–500 m, boundary cones at most 5 m apart, at least 3 m wide.
 
-use crate::color::Color;
 use crate::course::Course;
-use crate::track::{Cone, Track, TrackKind};
+use crate::track::{Track, TrackKind};
 use cairn_core::SE2;
+use cairn_slam::Color;
+use cairn_slam::Cone;
 use nalgebra::Vector2;
 use rand::rngs::StdRng;
 use rand::{Rng, SeedableRng};

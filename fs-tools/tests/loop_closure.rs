@@ -1,0 +1,65 @@
+//! Loop closure by place recognition on a simulated run.
+
+use cairn_fs_tools::configs::assumed_config;
+use cairn_fs_tools::course::Course;
+use cairn_fs_tools::sim::{Preset, SimConfig, simulate};
+use cairn_fs_tools::track::Track;
+use cairn_slam::estimator::EstimatorKind;
+use cairn_slam::frontend::GraphSlam;
+use cairn_slam::frontend::association::AssociationMethod;
+use std::path::PathBuf;
+
+/// On epfl_fsds_competition_1 (`standard`, seed 4) place recognition
+/// ties detections the gates had matched to the lap's end to the start
+/// area's landmarks; each must stay one sighting, moved, not a second
+/// one beside the first (which counted twice once the two merged).
+#[test]
+fn a_detection_is_one_sighting_after_place_recognition() {
+    let path = PathBuf::from(env!("CARGO_MANIFEST_DIR"))
+        .join("../../shared/tracks/epfl_fsds_competition_1_cones.csv");
+    if !path.is_file() {
+        assert!(
+            std::env::var_os("CAIRN_REQUIRE_SHARED").is_none(),
+            "CAIRN_REQUIRE_SHARED is set but {} is missing",
+            path.display()
+        );
+        eprintln!("note: {} not found; skipping", path.display());
+        return;
+    }
+    let track = Track::load(&path).expect("the shared track reads");
+    let course = Course::from_track(&track).expect("a closed course");
+    let preset = Preset::standard();
+    let config = assumed_config(
+        preset.name,
+        AssociationMethod::MaximumLikelihood,
+        EstimatorKind::Graph,
+    )
+    .expect("the preset has a shipped config");
+    let mut recognised = 0;
+    for seed in 3..=5 {
+        let sim = simulate(
+            &track,
+            &course,
+            &SimConfig {
+                preset: preset.clone(),
+                seed,
+                ..SimConfig::default()
+            },
+        );
+        let mut slam = GraphSlam::new(config.clone());
+        for record in &sim.log {
+            slam.process(record);
+        }
+        slam.finish().expect("the final optimisation solves");
+        let mut sightings: Vec<(usize, u64, u64)> = slam
+            .sightings()
+            .map(|(pose, z)| (pose, z.x.to_bits(), z.y.to_bits()))
+            .collect();
+        let all = sightings.len();
+        sightings.sort_unstable();
+        sightings.dedup();
+        assert_eq!(sightings.len(), all, "seed {seed}");
+        recognised += usize::from(slam.loop_closures() > 0);
+    }
+    assert_eq!(recognised, 3);
+}
