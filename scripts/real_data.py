@@ -37,9 +37,9 @@ def score(cairn, truth, folder, plot=None, title=None):
 
 def row(label, r):
     mapped = 15 - r["missed"]
-    return "| %s | %d | %d | %d | %.3f | %.1f%% | %.2f |" % (
+    return "| %s | %d | %d | %d | %.3f | %.1f%% | %.1f%% | %.2f |" % (
         label, r["landmarks"], mapped, r["phantom"], r["map_rmse_aligned"],
-        100 * r["association_accuracy"], r["ate"])
+        100 * r["association_accuracy"], 100 * r["association_accuracy_majority"], r["ate"])
 
 
 def main():
@@ -51,7 +51,7 @@ def main():
     config = os.path.join(ROOT, "configs/mrclam.toml")
     work = tempfile.mkdtemp(prefix="cairn-real-")
     header = ("| run | landmarks | true ones mapped (of 15) | phantom | map RMSE aligned (m) "
-              "| association | ATE (m) |\n|---|---|---|---|---|---|---|")
+              "| association | by majority | ATE (m) |\n|---|---|---|---|---|---|---|---|")
     sections = []
     for robot in range(1, 6):
         lines = ["### Robot %d\n" % robot, header]

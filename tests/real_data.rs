@@ -238,8 +238,9 @@ fn a_config_file_is_checked_and_its_values_overridden() {
 /// front end finds itself on its map again instead of matching one
 /// detection through a wide gate (robots 1 and 2 ended 3.5 and 5.3 m off
 /// before). The bounds are regression guards a little past today's
-/// results (ATE 0.45–1.06 m, 13–15 of 15 true landmarks mapped, 1–8
-/// phantoms; docs/real-data.md), far from the targets.
+/// results, scored one-to-one (ATE 0.45–1.06 m, 10–14 of 15 true landmarks
+/// mapped, 2–8 phantoms, 39–66% of detections right; docs/real-data.md),
+/// far from the targets.
 #[test]
 fn the_graph_front_end_finds_itself_again_on_every_robot() {
     let Some(dataset) = dataset6() else { return };
@@ -268,10 +269,10 @@ fn the_graph_front_end_finds_itself_again_on_every_robot() {
         let number = |key: &str| report[key].as_f64().unwrap_or(f64::NAN);
         eprintln!("robot {robot}: {report}");
         assert!(number("ate") < 1.3, "robot {robot}: {report}");
-        assert!(number("missed") <= 3.0, "robot {robot}: {report}");
+        assert!(number("missed") <= 6.0, "robot {robot}: {report}");
         assert!(number("phantom") <= 10.0, "robot {robot}: {report}");
         assert!(
-            number("association_accuracy") > 0.45,
+            number("association_accuracy") > 0.35,
             "robot {robot}: {report}"
         );
     }

@@ -1,6 +1,7 @@
-//! Scoring a run against the truth: map RMSE (nearest true cone, with and
-//! without a best rigid alignment, overall and per colour), trajectory error
-//! (ATE), data-association accuracy, missed and phantom landmarks, latency.
+//! Scoring a run against the truth: map RMSE (landmarks matched one-to-one
+//! to true cones, with and without a best rigid alignment, overall and per
+//! colour), trajectory error (ATE), data-association accuracy, missed and
+//! phantom landmarks, latency.
 
 use cairn_slam::Color;
 use cairn_slam::Cone;
@@ -9,7 +10,8 @@ use nalgebra::{Matrix2, Vector2};
 use serde::Serialize;
 use std::collections::HashMap;
 
-/// A landmark farther than this from every true cone is a phantom (m).
+/// A landmark matches a true cone only within this distance (m); one left
+/// without a match is a phantom.
 pub const MATCH_RADIUS: f64 = 1.0;
 
 /// Everything `cairn fs-eval` reports.
@@ -17,7 +19,9 @@ pub const MATCH_RADIUS: f64 = 1.0;
 pub struct Report {
     /// Landmarks in the estimated map.
     pub landmarks: usize,
-    /// RMSE of matched landmarks to their nearest true cone (m).
+    /// RMSE of matched landmarks to their true cones (m): each true cone
+    /// matched to at most one landmark within [`MATCH_RADIUS`], the most
+    /// pairs, then the smallest summed distance ([`crate::matching`]).
     pub map_rmse: f64,
     /// The same after the best rigid alignment of the map to the truth (m).
     pub map_rmse_aligned: f64,
@@ -32,21 +36,33 @@ pub struct Report {
     pub map_nees: Option<f64>,
     /// Per colour (of the true cone): (colour, RMSE, matched landmarks).
     pub map_rmse_by_color: Vec<(String, f64, usize)>,
-    /// Landmarks with no true cone within [`MATCH_RADIUS`].
+    /// Landmarks left without a true cone by the one-to-one matching:
+    /// clutter, and the second landmark of a duplicated cone.
     pub phantom: usize,
-    /// True cones that were detected but have no landmark within [`MATCH_RADIUS`].
+    /// True cones that were detected but matched no landmark.
     pub missed: usize,
     /// Position RMSE of the trajectory against the truth at the same times (m).
     pub ate: f64,
     /// The same after the best rigid alignment (m).
     pub ate_aligned: f64,
-    /// Fraction of detections associated correctly (see [`association_accuracy`]).
+    /// Fraction of detections associated correctly, each true cone standing
+    /// for at most one landmark ([`association_labels`]): the detections of
+    /// a duplicated cone's second landmark are wrong.
     pub association_accuracy: f64,
-    /// Detections scored.
+    /// The same with each landmark standing for the true cone most of its
+    /// detections came from: a relabelling by majority that forgives a
+    /// duplicated cone, so never below `association_accuracy`.
+    pub association_accuracy_majority: f64,
+    /// `association_accuracy` of the estimate as it stood before the
+    /// end-of-run pass (re-matching and the final optimisation): what the
+    /// car knew while driving. `None` when not measured.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub association_accuracy_real_time: Option<f64>,
+    /// Detections scored (with a simulated point-cloud run's lost sightings).
     pub detections: usize,
     /// Update latency percentiles (ms): p50, p99, p99.9, max.
     pub latency_ms: Option<[f64; 4]>,
-    /// Longest loop-closure optimisation (ms).
+    /// Longest scan update that closed a loop, all of it (ms).
     pub loop_closure_ms: Option<f64>,
     /// The optimisation at the end of the run (ms).
     pub final_optimisation_ms: Option<f64>,
@@ -68,25 +84,22 @@ pub fn evaluate(
         landmarks: map.len(),
         ..Default::default()
     };
-    // Map: nearest true cone for every landmark.
+    // Map: each landmark to at most one true cone, and back.
+    let stands_for = map_labels(truth_map, map);
     let mut pairs = Vec::new();
     let mut matched: Vec<(&Cone, Vector2<f64>)> = Vec::new();
     let mut by_color: HashMap<Color, (f64, usize)> = HashMap::new();
-    for lm in map {
-        let nearest = truth_map
-            .iter()
-            .enumerate()
-            .map(|(i, c)| (i, (c.position - lm.position).norm()))
-            .min_by(|a, b| a.1.total_cmp(&b.1));
-        match nearest {
-            Some((i, d)) if d <= MATCH_RADIUS => {
-                pairs.push((lm.position, truth_map[i].position));
-                matched.push((lm, truth_map[i].position));
-                let e = by_color.entry(truth_map[i].color).or_default();
-                e.0 += d * d;
+    for (lm, cone) in map.iter().zip(&stands_for) {
+        match cone {
+            Some(i) => {
+                let truth = &truth_map[*i];
+                pairs.push((lm.position, truth.position));
+                matched.push((lm, truth.position));
+                let e = by_color.entry(truth.color).or_default();
+                e.0 += (lm.position - truth.position).norm_squared();
                 e.1 += 1;
             }
-            _ => report.phantom += 1,
+            None => report.phantom += 1,
         }
     }
     report.map_rmse = rms(pairs.iter().map(|(a, b)| (a - b).norm()));
@@ -106,13 +119,8 @@ pub fn evaluate(
         .iter()
         .filter_map(|a| a.landmark)
         .collect();
-    report.missed = seen
-        .iter()
-        .filter(|&&i| {
-            map.iter()
-                .all(|lm| (lm.position - truth_map[i].position).norm() > MATCH_RADIUS)
-        })
-        .count();
+    let found: std::collections::HashSet<usize> = stands_for.iter().flatten().copied().collect();
+    report.missed = seen.iter().filter(|i| !found.contains(i)).count();
     // Trajectory at the estimate's times.
     let mut traj_est = Vec::new();
     let mut traj_truth = Vec::new();
@@ -127,9 +135,13 @@ pub fn evaluate(
         .zip(&traj_truth)
         .map(|(a, b)| (a - b).norm()));
     report.ate_aligned = aligned_rms(&traj_est, &traj_truth);
-    let (accuracy, n) = association_accuracy(truth_associations, associations);
+    let labels = association_labels(truth_associations, associations);
+    let (accuracy, n) = association_accuracy(truth_associations, associations, &labels);
     report.association_accuracy = accuracy;
     report.detections = n;
+    let majority = majority_labels(truth_associations, associations);
+    report.association_accuracy_majority =
+        association_accuracy(truth_associations, associations, &majority).0;
     report
 }
 
@@ -153,31 +165,70 @@ fn covariance_scores(matched: &[(&Cone, Vector2<f64>)]) -> Option<(f64, f64)> {
     })
 }
 
-/// The fraction of detections associated correctly. Each landmark stands
-/// for the true cone most of its detections came from; a detection is
-/// correct when its landmark stands for its true cone, or when a false
-/// positive was rejected. Returns (accuracy, detections scored).
-pub fn association_accuracy(truth: &[Association], estimate: &[Association]) -> (f64, usize) {
+/// The true cone each landmark of `map` stands for: its one-to-one match
+/// within [`MATCH_RADIUS`] ([`crate::matching::one_to_one`]), by map row.
+pub fn map_labels(truth_map: &[Cone], map: &[Cone]) -> Vec<Option<usize>> {
+    let positions = |cones: &[Cone]| cones.iter().map(|c| c.position).collect::<Vec<_>>();
+    crate::matching::one_to_one(&positions(map), &positions(truth_map), MATCH_RADIUS)
+}
+
+/// How many detections each landmark got from each true cone (`None`:
+/// from a false positive), by landmark id.
+fn votes(truth: &[Association], estimate: &[Association]) -> Vec<HashMap<Option<usize>, i64>> {
     let truth_of: HashMap<(usize, usize), Option<usize>> = truth
         .iter()
         .map(|a| ((a.scan, a.det), a.landmark))
         .collect();
-    let mut votes: HashMap<usize, HashMap<Option<usize>, usize>> = HashMap::new();
+    let mut votes: Vec<HashMap<Option<usize>, i64>> = Vec::new();
     for a in estimate {
         if let (Some(l), Some(t)) = (a.landmark, truth_of.get(&(a.scan, a.det))) {
-            *votes.entry(l).or_default().entry(*t).or_default() += 1;
+            if votes.len() <= l {
+                votes.resize_with(l + 1, HashMap::new);
+            }
+            *votes[l].entry(*t).or_default() += 1;
         }
     }
-    let stands_for: HashMap<usize, Option<usize>> = votes
+    votes
+}
+
+/// The true cone each landmark stands for, each cone for at most one
+/// landmark: the assignment that makes the most detections correct
+/// ([`crate::matching::assign`]), by landmark id.
+pub fn association_labels(truth: &[Association], estimate: &[Association]) -> Vec<Option<usize>> {
+    let links: Vec<Vec<(usize, i64)>> = votes(truth, estimate)
         .into_iter()
-        .map(|(l, v)| {
-            (
-                l,
-                v.into_iter()
-                    .max_by_key(|(t, n)| (*n, *t))
-                    .and_then(|(t, _)| t),
-            )
+        .map(|v| v.into_iter().filter_map(|(t, n)| Some((t?, n))).collect())
+        .collect();
+    let cones = links.iter().flatten().map(|l| l.0 + 1).max().unwrap_or(0);
+    crate::matching::assign(&links, cones)
+}
+
+/// The true cone each landmark stands for when it is the one most of the
+/// landmark's detections came from (ties to the higher index), by landmark
+/// id: several landmarks may stand for one cone.
+pub fn majority_labels(truth: &[Association], estimate: &[Association]) -> Vec<Option<usize>> {
+    votes(truth, estimate)
+        .into_iter()
+        .map(|v| {
+            v.into_iter()
+                .max_by_key(|(t, n)| (*n, *t))
+                .and_then(|(t, _)| t)
         })
+        .collect()
+}
+
+/// The fraction of detections associated correctly, each landmark `l`
+/// standing for the true cone `stands_for[l]` (none beyond its end): a
+/// detection is correct when its landmark stands for its true cone, or when
+/// a false positive was rejected. Returns (accuracy, detections scored).
+pub fn association_accuracy(
+    truth: &[Association],
+    estimate: &[Association],
+    stands_for: &[Option<usize>],
+) -> (f64, usize) {
+    let truth_of: HashMap<(usize, usize), Option<usize>> = truth
+        .iter()
+        .map(|a| ((a.scan, a.det), a.landmark))
         .collect();
     let mut correct = 0;
     let mut total = 0;
@@ -188,7 +239,7 @@ pub fn association_accuracy(truth: &[Association], estimate: &[Association]) -> 
         total += 1;
         let ok = match (a.landmark, t) {
             (None, None) => true,
-            (Some(l), Some(c)) => stands_for.get(&l) == Some(&Some(*c)),
+            (Some(l), Some(c)) => stands_for.get(l).copied().flatten() == Some(*c),
             _ => false,
         };
         correct += usize::from(ok);
@@ -203,7 +254,6 @@ pub fn association_accuracy(truth: &[Association], estimate: &[Association]) -> 
     )
 }
 
-/// The true position at time `t`, linearly interpolated.
 /// The estimate's position error (m) at each of its times within the
 /// truth's, against the truth interpolated there: (time, error).
 pub fn position_errors(truth: &[StampedPose], estimate: &[StampedPose]) -> Vec<(f64, f64)> {
@@ -213,6 +263,7 @@ pub fn position_errors(truth: &[StampedPose], estimate: &[StampedPose]) -> Vec<(
         .collect()
 }
 
+/// The true position at time `t`, linearly interpolated.
 fn interpolate(truth: &[StampedPose], t: f64) -> Option<Vector2<f64>> {
     let i = truth.partition_point(|p| p.t < t);
     if i == truth.len() {

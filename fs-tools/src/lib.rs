@@ -5,7 +5,8 @@
 //!   drives;
 //! - [`sim`]: a seeded simulator writing the input log and its ground truth;
 //!   [`configs`]: what the estimators assume about its presets;
-//! - [`eval`], [`run`]: scoring a run against the truth;
+//! - [`eval`], [`matching`], [`run`]: scoring a run against the truth, the
+//!   map matched to it one-to-one;
 //! - [`mrclam`]: an importer of the UTIAS Multi-Robot Cooperative
 //!   Localization and Mapping dataset (range/bearing landmark detections,
 //!   commanded velocities, Vicon ground truth);
@@ -16,6 +17,7 @@ pub mod batch;
 pub mod configs;
 pub mod course;
 pub mod eval;
+pub mod matching;
 pub mod mrclam;
 pub mod run;
 pub mod sim;

@@ -1,7 +1,7 @@
 //! A log or a simulated run end to end, as the command line, the report,
 //! the study and the tests use it.
 
-use crate::eval::{Report, evaluate, latency_ms};
+use crate::eval::{Report, association_accuracy, association_labels, evaluate, latency_ms};
 use crate::sim::Simulation;
 use cairn_slam::estimator::{Estimator, EstimatorBuilder};
 use cairn_slam::frontend::{FrontEndConfig, GraphSlam, OptimiseError};
@@ -47,13 +47,38 @@ pub fn run_estimator(sim: &Simulation, builder: &EstimatorBuilder) -> (Box<dyn E
     (slam, report)
 }
 
-/// Feeds the log, finishes, and scores.
+/// Feeds the log, scores the associations as they stand (real time),
+/// finishes, and scores the result.
 fn feed_and_score(sim: &Simulation, slam: &mut dyn Estimator) -> Report {
     for record in &sim.log {
         slam.process(record);
     }
+    let real_time = real_time_accuracy(sim, slam);
     let finished = slam.finish();
-    with_warnings(score(sim, slam), slam, finished)
+    let mut report = with_warnings(score(sim, slam), slam, finished);
+    report.association_accuracy_real_time = Some(real_time);
+    report
+}
+
+/// `accuracy` of `scored` detections with the simulation's lost sightings
+/// counted as wrong.
+fn with_lost(accuracy: f64, scored: usize, sim: &Simulation) -> f64 {
+    let all = scored + sim.lost_sightings;
+    if all == 0 {
+        accuracy
+    } else {
+        accuracy * scored as f64 / all as f64
+    }
+}
+
+/// The association accuracy of the estimate as it stands (each true cone
+/// standing for at most one landmark): before [`Estimator::finish`], what
+/// the car knew while driving.
+pub fn real_time_accuracy(sim: &Simulation, slam: &dyn Estimator) -> f64 {
+    let (truth, estimate) = (&sim.truth_associations, &slam.associations());
+    let (accuracy, scored) =
+        association_accuracy(truth, estimate, &association_labels(truth, estimate));
+    with_lost(accuracy, scored, sim)
 }
 
 /// The report with the run's failed optimisations, the final one's included.
@@ -71,7 +96,8 @@ fn with_warnings(
     report
 }
 
-/// Scores an estimator's current output against the simulation's truth.
+/// Scores an estimator's current output against the simulation's truth
+/// (lost sightings counted as wrong associations).
 pub fn score(sim: &Simulation, slam: &dyn Estimator) -> Report {
     let mut report = evaluate(
         &sim.truth_map,
@@ -81,6 +107,11 @@ pub fn score(sim: &Simulation, slam: &dyn Estimator) -> Report {
         &sim.truth_associations,
         &slam.associations(),
     );
+    let scored = report.detections;
+    report.association_accuracy = with_lost(report.association_accuracy, scored, sim);
+    report.association_accuracy_majority =
+        with_lost(report.association_accuracy_majority, scored, sim);
+    report.detections += sim.lost_sightings;
     report.latency_ms = latency_ms(&slam.timing().updates);
     report.loop_closure_ms = slam
         .timing()

@@ -239,6 +239,10 @@ pub struct Simulation {
     pub truth_associations: Vec<Association>,
     /// The true cones; their order gives the indices above.
     pub truth_map: Vec<Cone>,
+    /// Sightings no detection stands for: in a point-cloud run, a cone whose
+    /// points the clustering merged into another cone's cluster or left
+    /// out. Scoring counts each as a wrong association.
+    pub lost_sightings: usize,
 }
 
 impl Simulation {
@@ -394,6 +398,7 @@ pub fn simulate(track: &Track, course: &Course, config: &SimConfig) -> Simulatio
         truth,
         truth_associations,
         truth_map: track.cones.clone(),
+        lost_sightings: 0,
     }
 }
 

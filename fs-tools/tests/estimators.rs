@@ -320,6 +320,14 @@ fn every_estimator_closes_the_loop_of_a_random_track_and_localises() {
         println!("{kind:?}: {report:?}");
         assert_eq!(slam.loop_closures(), 1, "{kind:?}");
         assert_eq!(slam.mode(), Mode::Localising, "{kind:?}");
+        // Its latency is the whole update of the scan that closed it.
+        let timing = slam.timing();
+        assert_eq!(timing.loop_closures.len(), 1, "{kind:?}");
+        assert!(
+            timing.updates.contains(&timing.loop_closures[0]),
+            "{kind:?}"
+        );
+        assert!(report.association_accuracy_real_time.is_some(), "{kind:?}");
         assert!(
             report.association_accuracy > accuracy,
             "{kind:?}: {}",

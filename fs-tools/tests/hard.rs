@@ -3,7 +3,7 @@
 //! nothing from `../shared`.
 
 use cairn_fs_tools::configs::assumed_config;
-use cairn_fs_tools::eval::{Report, association_accuracy};
+use cairn_fs_tools::eval::{Report, association_accuracy, majority_labels};
 use cairn_fs_tools::run::run_and_score;
 use cairn_fs_tools::sim::{Preset, SimConfig, Simulation, simulate};
 use cairn_fs_tools::trackgen::{TrackRules, random_track};
@@ -122,9 +122,17 @@ fn the_end_of_the_run_matches_what_the_real_time_gates_left_unmatched() {
         for r in &sim.log {
             slam.process(r);
         }
-        let (real_time, _) = association_accuracy(&sim.truth_associations, &slam.associations());
+        let (real_time, _) = association_accuracy(
+            &sim.truth_associations,
+            &slam.associations(),
+            &majority_labels(&sim.truth_associations, &slam.associations()),
+        );
         slam.finish().unwrap();
-        let (last, _) = association_accuracy(&sim.truth_associations, &slam.associations());
+        let (last, _) = association_accuracy(
+            &sim.truth_associations,
+            &slam.associations(),
+            &majority_labels(&sim.truth_associations, &slam.associations()),
+        );
         println!("track {track} seed {seed}: {real_time} → {last}");
         assert_eq!(slam.loop_closures(), 1);
         assert!(last > real_time + 0.008, "{real_time} → {last}");

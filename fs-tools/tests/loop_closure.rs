@@ -60,6 +60,13 @@ fn a_detection_is_one_sighting_after_place_recognition() {
         sightings.dedup();
         assert_eq!(sightings.len(), all, "seed {seed}");
         recognised += usize::from(slam.loop_closures() > 0);
+        // The loop closure's latency is the whole scan update that closed
+        // it (place recognition, optimisation, matching again).
+        let timing = slam.timing();
+        assert_eq!(timing.loop_closures.len(), slam.loop_closures());
+        for seconds in &timing.loop_closures {
+            assert!(timing.updates.contains(seconds), "seed {seed}");
+        }
     }
     assert_eq!(recognised, 3);
 }

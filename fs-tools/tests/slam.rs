@@ -3,7 +3,10 @@
 mod common;
 
 use cairn_fs_tools::configs::assumed_config;
-use cairn_fs_tools::eval::{aligned_rms, association_accuracy, rigid_alignment};
+use cairn_fs_tools::eval::{
+    aligned_rms, association_accuracy, association_labels, evaluate, majority_labels, map_labels,
+    rigid_alignment,
+};
 use cairn_fs_tools::run::run_and_score;
 use cairn_fs_tools::sim::{Preset, SimConfig, simulate};
 use cairn_fs_tools::trackgen::{TrackRules, random_track};
@@ -12,6 +15,7 @@ use cairn_slam::files::Association;
 use cairn_slam::frontend::association::AssociationMethod;
 use cairn_slam::frontend::{FrontEndConfig, GraphSlam, Mode};
 use cairn_slam::log::Record;
+use cairn_slam::{Color, Cone};
 use common::simulate_seed;
 use nalgebra::{Rotation2, Vector2};
 
@@ -79,7 +83,7 @@ fn rigid_alignment_recovers_a_transform_and_refuses_reflections() {
 }
 
 #[test]
-fn association_accuracy_counts_landmarks_by_majority() {
+fn association_accuracy_by_majority_and_one_to_one() {
     let truth = [Some(7), Some(7), Some(7), None, Some(8)];
     let est = [Some(0), Some(0), Some(1), None, Some(0)];
     let t: Vec<_> = truth
@@ -101,9 +105,34 @@ fn association_accuracy_counts_landmarks_by_majority() {
         })
         .collect();
     // Landmark 0 stands for cone 7 (2 of 3), landmark 1 for cone 7: 4 of 5 right.
-    let (acc, n) = association_accuracy(&t, &e);
+    let (acc, n) = association_accuracy(&t, &e, &majority_labels(&t, &e));
     assert_eq!(n, 5);
     assert!((acc - 0.8).abs() < 1e-12);
+    // One-to-one, cone 7 stands for one landmark alone: either landmark 0
+    // (2 right) with landmark 1 a duplicate, or landmark 0 for cone 8 and 1
+    // for cone 7 (1 + 1 right); 3 of 5 either way.
+    let labels = association_labels(&t, &e);
+    assert!(
+        labels == [Some(7), None] || labels == [Some(8), Some(7)],
+        "{labels:?}"
+    );
+    let (acc, _) = association_accuracy(&t, &e, &labels);
+    assert!((acc - 0.6).abs() < 1e-12, "{acc}");
+    // On the map, landmark 1 is a phantom beside cone 7.
+    let mut truth_map = vec![Cone::new(50.0, 50.0, Color::Blue); 9];
+    truth_map[7] = Cone::new(0.0, 0.0, Color::Blue);
+    truth_map[8] = Cone::new(5.0, 0.0, Color::Yellow);
+    let map = [
+        Cone::new(0.1, 0.0, Color::Blue),
+        Cone::new(0.3, 0.0, Color::Blue),
+    ];
+    assert_eq!(map_labels(&truth_map, &map), [Some(7), None]);
+    let report = evaluate(&truth_map, &map, &[], &[], &t, &e);
+    assert_eq!((report.phantom, report.landmarks), (1, 2));
+    assert!((report.association_accuracy - 0.6).abs() < 1e-12);
+    assert!((report.association_accuracy_majority - 0.8).abs() < 1e-12);
+    assert_eq!(report.missed, 1, "cone 8 was seen and has no landmark");
+    assert!((report.map_rmse - 0.1).abs() < 1e-12);
 }
 
 fn score(method: AssociationMethod, seed: u64) -> (GraphSlam, cairn_fs_tools::eval::Report) {
@@ -279,7 +308,8 @@ fn detections_near_the_start_before_the_loop_closes_are_matched_after_it() {
             .cloned()
             .collect();
         let estimate: Vec<Association> = slam.associations().iter().filter(keep).cloned().collect();
-        let (accuracy, n) = association_accuracy(&truth, &estimate);
+        let (accuracy, n) =
+            association_accuracy(&truth, &estimate, &majority_labels(&truth, &estimate));
         println!(
             "seed {seed}: {} scans, {n} detections, {accuracy}",
             lap_end.len()
@@ -494,7 +524,6 @@ fn the_map_covariances_are_the_final_graphs_marginals_and_fit_its_errors() {
 #[test]
 fn the_map_scores_its_covariances_when_every_landmark_has_one() {
     use cairn_fs_tools::eval::evaluate;
-    use cairn_slam::Cone;
     use cairn_slam::color::Color;
     use nalgebra::Matrix2;
     let truth = vec![

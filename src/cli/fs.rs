@@ -257,6 +257,14 @@ pub fn run_sim(a: SimArgs) -> Result<(), super::CliError> {
         sim.truth_associations.len(),
         a.out.display()
     );
+    if sim.lost_sightings > 0 {
+        // FORMAT.md's association file has a row per detection only.
+        eprintln!(
+            "{} cone sightings have no cluster of their own (merged into another cone's or too \
+             sparse); truth_assoc.csv cannot list them, so fs-eval does not count them",
+            sim.lost_sightings
+        );
+    }
     if a.preset != "standard" {
         // The log does not say how noisy its detector is (FORMAT.md).
         eprintln!(

@@ -81,6 +81,7 @@ pub fn run_eval(a: EvalArgs) -> Result<(), super::CliError> {
     if a.assoc.is_none() {
         // JSON writes it as null, the table as not scored.
         report.association_accuracy = f64::NAN;
+        report.association_accuracy_majority = f64::NAN;
     }
     if truth_traj.is_none() {
         // JSON writes these as null, the table as not scored.
@@ -206,6 +207,18 @@ pub fn table(r: &Report) -> String {
             },
         ),
     ]);
+    if !r.association_accuracy_majority.is_nan() {
+        rows.push((
+            "  by majority (duplicates forgiven)".into(),
+            format!("{:.2}%", 100.0 * r.association_accuracy_majority),
+        ));
+    }
+    if let Some(real_time) = r.association_accuracy_real_time {
+        rows.push((
+            "  in real time (before the end-of-run pass)".into(),
+            format!("{:.2}%", 100.0 * real_time),
+        ));
+    }
     if let Some([p50, p99, p999, max]) = r.latency_ms {
         rows.push((
             "update p50/p99/p99.9/max (ms)".into(),
@@ -213,7 +226,10 @@ pub fn table(r: &Report) -> String {
         ));
     }
     if let Some(ms) = r.loop_closure_ms {
-        rows.push(("loop-closure optimisation (ms)".into(), format!("{ms:.1}")));
+        rows.push((
+            "loop-closure scan, all of it (ms)".into(),
+            format!("{ms:.1}"),
+        ));
     }
     if let Some(ms) = r.final_optimisation_ms {
         rows.push(("final optimisation (ms)".into(), format!("{ms:.1}")));

@@ -14,11 +14,16 @@ pub struct Summary {
     /// The RMSE the maps' covariances predict, as an RMS over the runs.
     predicted: Option<f64>,
     ate: f64,
-    /// Percent of detections matched right.
+    /// Percent of detections matched right, each true cone standing for
+    /// one landmark; the same by majority, and before the end-of-run pass.
     association: f64,
+    majority: f64,
+    real_time: Option<f64>,
     phantom: f64,
     missed: f64,
     p99_ms: f64,
+    p999_ms: f64,
+    max_ms: f64,
     loop_closure_ms: f64,
     final_ms: f64,
     closed: usize,
@@ -43,9 +48,17 @@ impl Summary {
                 .map(|p| (p.iter().map(|x| x * x).sum::<f64>() / n).sqrt()),
             ate: mean(&|r| r.ate),
             association: 100.0 * mean(&|r| r.association_accuracy),
+            majority: 100.0 * mean(&|r| r.association_accuracy_majority),
+            real_time: runs
+                .iter()
+                .map(|r| r.report.association_accuracy_real_time)
+                .sum::<Option<f64>>()
+                .map(|sum| 100.0 * sum / n),
             phantom: mean(&|r| r.phantom as f64),
             missed: mean(&|r| r.missed as f64),
             p99_ms: worst(&|r| r.latency_ms.map(|l| l[1])),
+            p999_ms: worst(&|r| r.latency_ms.map(|l| l[2])),
+            max_ms: worst(&|r| r.latency_ms.map(|l| l[3])),
             loop_closure_ms: worst(&|r| r.loop_closure_ms),
             final_ms: worst(&|r| r.final_optimisation_ms),
             closed: runs.iter().filter(|r| r.closures > 0).count(),
@@ -53,20 +66,33 @@ impl Summary {
         }
     }
 
+    /// The header of [`Self::row`]'s table, after `first` (the label columns).
+    pub fn header(first: &str) -> String {
+        let columns = "map RMSE (m) | aligned (m) | predicted (m) | ATE (m) | association | by majority | real time | phantom | missed | p99 / p99.9 / max (ms) | loop closure (ms) | final (ms) | runs closed";
+        let n = first.matches('|').count() + 14;
+        format!("| {first} | {columns} |\n{}|", "|---".repeat(n))
+    }
+
     /// The table row, labelled `name`.
     pub fn row(&self, name: &str) -> String {
         let predicted = self
             .predicted
             .map_or("–".to_string(), |p| format!("{p:.3}"));
+        let real_time = self
+            .real_time
+            .map_or("–".to_string(), |p| format!("{p:.2}%"));
         format!(
-            "| {name} | {:.3} | {:.3} | {predicted} | {:.3} | {:.2}% | {:.1} | {:.1} | {:.3} | {:.1} | {:.1} | {}/{} |",
+            "| {name} | {:.3} | {:.3} | {predicted} | {:.3} | {:.2}% | {:.2}% | {real_time} | {:.1} | {:.1} | {:.3} / {:.3} / {:.3} | {:.1} | {:.1} | {}/{} |",
             self.map_rmse,
             self.map_rmse_aligned,
             self.ate,
             self.association,
+            self.majority,
             self.phantom,
             self.missed,
             self.p99_ms,
+            self.p999_ms,
+            self.max_ms,
             self.loop_closure_ms,
             self.final_ms,
             self.closed,
@@ -177,9 +203,13 @@ mod tests {
             predicted: Some(0.107),
             ate: 0.05,
             association,
+            majority: association,
+            real_time: Some(association),
             phantom: 0.0,
             missed: 0.0,
             p99_ms: 0.5,
+            p999_ms: 0.6,
+            max_ms: 0.7,
             loop_closure_ms: 5.0,
             final_ms: 100.0,
             closed: 5,

@@ -11,9 +11,13 @@ const BIG_CONE: (f64, f64) = (0.142, 0.505);
 /// return from the same objects (the true cones' visible surfaces, a small
 /// blob per false positive), plus points on the vehicle's own nose and far
 /// beyond the cones, which the point front end must remove. The truth
-/// associations then refer to the clusters [`cairn_slam::points::extract`] finds
-/// with `points` (in its order), labelled by the object most of their points
-/// came from.
+/// associations refer to the clusters the estimator makes with `points`
+/// ([`cairn_slam::points::extract`], in its order), each labelled by the
+/// cone its points came from, one cluster per cone and scan: the cluster
+/// with most of the cone's points. A second cluster of one cone is a false
+/// positive, and a cone whose points went to another cone's cluster (or to
+/// none) is a lost sighting ([`Simulation::lost_sightings`]), so clustering
+/// errors count against the association.
 pub fn point_clouds(
     sim: &Simulation,
     points: &cairn_slam::points::PointCloudConfig,
@@ -25,6 +29,7 @@ pub fn point_clouds(
     let mut sources = sim.truth_associations.iter().peekable();
     let mut log = Vec::with_capacity(sim.log.len());
     let mut truth_associations = Vec::new();
+    let mut lost_sightings = 0;
     let mut scan = 0;
     for record in &sim.log {
         let Record::Cones { t, cones } = record else {
@@ -78,18 +83,10 @@ pub fn point_clouds(
             cloud.push([30.0 * c, 30.0 * s, 0.5]);
             origin.push(None);
         }
-        for (det, cluster) in cairn_slam::points::extract(&cloud, points)
-            .iter()
-            .enumerate()
-        {
-            let mut votes: HashMap<Option<usize>, usize> = HashMap::new();
-            for &i in &cluster.points {
-                *votes.entry(origin[i]).or_default() += 1;
-            }
-            let landmark = votes
-                .into_iter()
-                .max_by_key(|(o, n)| (*n, *o))
-                .and_then(|(o, _)| o);
+        let clusters = cairn_slam::points::extract(&cloud, points);
+        let (labels, lost) = label_clusters(&clusters, &origin);
+        lost_sightings += lost;
+        for (det, landmark) in labels.into_iter().enumerate() {
             truth_associations.push(Association {
                 scan,
                 det,
@@ -107,7 +104,35 @@ pub fn point_clouds(
         truth: sim.truth.clone(),
         truth_associations,
         truth_map: sim.truth_map.clone(),
+        lost_sightings,
     }
+}
+
+/// Each cluster's cone: the origin of most of its points, one cluster per
+/// cone (the one with most of its points; another is a false positive);
+/// and the cones with points in the cloud that no cluster stands for.
+pub(super) fn label_clusters(
+    clusters: &[cairn_slam::points::Cluster],
+    origin: &[Option<usize>],
+) -> (Vec<Option<usize>>, usize) {
+    let links: Vec<Vec<(usize, i64)>> = clusters
+        .iter()
+        .map(|cluster| {
+            let mut counts: HashMap<Option<usize>, i64> = HashMap::new();
+            for &i in &cluster.points {
+                *counts.entry(origin[i]).or_default() += 1;
+            }
+            let most = counts.into_iter().max_by_key(|(o, n)| (*n, *o));
+            most.and_then(|(cone, n)| Some((cone?, n)))
+                .into_iter()
+                .collect()
+        })
+        .collect();
+    let cones = origin.iter().flatten().map(|c| c + 1).max().unwrap_or(0);
+    let labels = crate::matching::assign(&links, cones);
+    let seen: std::collections::HashSet<usize> = origin.iter().flatten().copied().collect();
+    let lost = seen.len() - labels.iter().flatten().count();
+    (labels, lost)
 }
 
 /// Points a scanner with 0.2° bearing and 1° elevation steps returns from

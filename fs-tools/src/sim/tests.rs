@@ -50,3 +50,44 @@ fn noise_of_any_sigma_can_be_drawn() {
     }
     assert!(gaussian(0.0).sample(&mut rng).abs() < 1e-290);
 }
+
+#[test]
+fn clusters_stand_for_one_cone_each_and_lost_cones_are_counted() {
+    use cairn_slam::points::Cluster;
+    let cluster = |points: Vec<usize>| Cluster {
+        points,
+        centroid: nalgebra::Vector3::zeros(),
+    };
+    // Points 0–5 of cone 3, 6–8 of cone 4, 9–10 noise, 11–12 of cone 5.
+    let origin = [
+        Some(3),
+        Some(3),
+        Some(3),
+        Some(3),
+        Some(3),
+        Some(3),
+        Some(4),
+        Some(4),
+        Some(4),
+        None,
+        None,
+        Some(5),
+        Some(5),
+    ];
+    let clusters = [
+        // Cone 3 split in two, the second part with cone 4 merged in.
+        cluster(vec![0, 1, 2, 3]),
+        cluster(vec![4, 5, 6, 7, 8]),
+        // Noise with one point of cone 5: noise.
+        cluster(vec![9, 10, 11]),
+    ];
+    let (labels, lost) = scanner::label_clusters(&clusters, &origin);
+    // The second cluster is mostly cone 4 (3 of 5).
+    assert_eq!(labels, [Some(3), Some(4), None]);
+    // Cone 5's points formed no cluster of their own.
+    assert_eq!(lost, 1);
+    let split = [cluster(vec![0, 1, 2]), cluster(vec![3, 4, 5])];
+    let (labels, lost) = scanner::label_clusters(&split, &origin[..6]);
+    assert_eq!(labels.iter().flatten().count(), 1, "{labels:?}");
+    assert_eq!(lost, 0);
+}

@@ -94,9 +94,10 @@ impl EkfSlam {
     /// Processes one log record.
     pub fn process(&mut self, record: &Record) {
         if let Some((t, cones)) = self.run.next_scan(record) {
-            let start = Instant::now();
+            let (start, closures) = (Instant::now(), self.run.loop_closures);
             self.update(t, cones);
-            self.run.timing.updates.push(start.elapsed().as_secs_f64());
+            self.run
+                .record_update(start.elapsed().as_secs_f64(), closures);
         }
     }
 

@@ -127,9 +127,10 @@ impl FastSlam {
     /// Processes one log record.
     pub fn process(&mut self, record: &Record) {
         if let Some((t, cones)) = self.run.next_scan(record) {
-            let start = Instant::now();
+            let (start, closures) = (Instant::now(), self.run.loop_closures);
             self.update(t, cones);
-            self.run.timing.updates.push(start.elapsed().as_secs_f64());
+            self.run
+                .record_update(start.elapsed().as_secs_f64(), closures);
         }
     }
 
@@ -231,7 +232,6 @@ impl FastSlam {
             None
         };
         if let Some(place) = recognised {
-            let start = Instant::now();
             self.run.close_loop();
             // Every particle carries on with the best particle's map, moved
             // to where the start landmarks put it.
@@ -246,10 +246,6 @@ impl FastSlam {
                 *p = chosen.clone();
                 p.log_weight = 0.0;
             }
-            self.run
-                .timing
-                .loop_closures
-                .push(start.elapsed().as_secs_f64());
         } else {
             self.resample();
         }

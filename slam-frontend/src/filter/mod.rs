@@ -301,6 +301,15 @@ impl Run {
         }
     }
 
+    /// Times a scan update that began with `closures` loop closures: every
+    /// update, and those that closed a loop, whole, as loop closures.
+    fn record_update(&mut self, seconds: f64, closures: usize) {
+        self.timing.updates.push(seconds);
+        if self.loop_closures > closures {
+            self.timing.loop_closures.push(seconds);
+        }
+    }
+
     /// Counts a loop closure and switches to localisation if configured.
     fn close_loop(&mut self) {
         self.loop_closures += 1;

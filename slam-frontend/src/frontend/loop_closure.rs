@@ -9,7 +9,6 @@ use crate::log::Detection;
 use crate::sighting::{START_AREA, View, near_start};
 use cairn_core::SE2;
 use nalgebra::{Matrix2, Matrix3, Vector2};
-use std::time::Instant;
 
 /// How far back the landmarks of [`GraphSlam::recent_submap`] were made (m).
 const RECENT: f64 = 40.0;
@@ -288,7 +287,6 @@ impl GraphSlam {
     /// matches the scans near the start again, and switches to
     /// localisation if configured.
     pub(super) fn close_loop(&mut self) {
-        let start = Instant::now();
         self.loop_closures += 1;
         self.closed_at = Some(self.motion.distance());
         if let Err(e) = self.optimise(super::optimise::Batch::loop_closure(
@@ -299,9 +297,6 @@ impl GraphSlam {
                 self.loop_closures
             ));
         }
-        self.timing
-            .loop_closures
-            .push(start.elapsed().as_secs_f64());
         for lm in &mut self.landmarks {
             lm.sighting.settle();
         }

@@ -10,7 +10,7 @@ mod calibration;
 mod candidates;
 mod config;
 mod edges;
-mod grid;
+pub mod grid;
 mod hindsight;
 mod landmarks;
 mod loop_closure;
@@ -79,7 +79,8 @@ pub enum OptimiseError {
 pub struct Timing {
     /// Seconds per scan update (association, local optimisation, EKFs).
     pub updates: Vec<f64>,
-    /// Seconds per full optimisation after a loop closure.
+    /// Seconds of each scan update that closed a loop, all of it: place
+    /// recognition, the full optimisation, matching the start area again.
     pub loop_closures: Vec<f64>,
     /// Seconds of the optimisation at the end of the run ([`GraphSlam::finish`]).
     pub final_optimisation: Option<f64>,
@@ -286,9 +287,13 @@ impl GraphSlam {
                 // A `start` record once the run has begun is ignored.
                 self.started = true;
                 self.motion.advance(*t, self.calibration.correction());
-                let start = Instant::now();
+                let (start, closures) = (Instant::now(), self.loop_closures);
                 self.update(*t, cones);
-                self.timing.updates.push(start.elapsed().as_secs_f64());
+                let seconds = start.elapsed().as_secs_f64();
+                self.timing.updates.push(seconds);
+                if self.loop_closures > closures {
+                    self.timing.loop_closures.push(seconds);
+                }
             }
             Record::Points { .. } => {}
         }
