@@ -8,15 +8,20 @@ use cairn_core::SE2;
 use cairn_slam::Color;
 use cairn_slam::Cone;
 use cairn_slam::files::{Association, StampedPose};
-use cairn_slam::log::{Detection, Record};
+use cairn_slam::log::Record;
 use cairn_slam::motion::integrate;
+use detector::detect;
+use effects::{Noise, integrate_with_sideslip};
 use nalgebra::Vector2;
+use rand::SeedableRng;
 use rand::rngs::StdRng;
-use rand::seq::SliceRandom;
-use rand::{Rng, SeedableRng};
-use rand_distr::{Distribution, Poisson, StandardNormal};
-use std::collections::HashMap;
+use rand_distr::Distribution;
+use std::collections::VecDeque;
 use std::f64::consts::PI;
+use tracker::Tracker;
+
+pub use effects::SpeedProfile;
+pub use tracker::TrackerModel;
 
 /// The cone detector's error model.
 #[derive(Clone, Debug, PartialEq)]
@@ -46,6 +51,19 @@ pub struct SensorModel {
     /// Probability that a clutter object in view (EUFS `inactive_noise`) is
     /// detected as a cone, with a random colour: a recurring false positive.
     pub clutter_detection_probability: f64,
+    /// Student-t degrees of freedom (above 2) of the range and bearing
+    /// noise, at the same σ: heavy tails. `None`: Gaussian.
+    pub noise_dof: Option<f64>,
+    /// Detection probability at `max_range`, falling linearly from
+    /// `detection_probability` at the vehicle. `None`: the same everywhere.
+    pub far_detection_probability: Option<f64>,
+    /// Nearer cones hide those whose centre is behind them.
+    pub occlusion: bool,
+    /// Age of a scan when it is stamped (s): the detections are measured
+    /// from where the car was this long before the scan's time.
+    pub latency: f64,
+    /// Where the detections' tracker ids come from.
+    pub tracker: TrackerModel,
 }
 
 /// The odometry's error model.
@@ -63,17 +81,26 @@ pub struct OdometryModel {
     pub yaw_rate_bias: f64,
     /// Steering-angle noise σ (rad).
     pub steer_sigma: f64,
+    /// Random walk of the yaw-rate bias (rad/s/√s): after t seconds it has
+    /// drifted by this·√t (one σ).
+    pub yaw_rate_bias_walk: f64,
+    /// Sideslip per lateral acceleration (rad per m/s²): the car moves this
+    /// far off its heading, outwards in a turn, which neither the speed nor
+    /// the yaw rate measures.
+    pub sideslip: f64,
 }
 
 /// A named pair of error models.
 #[derive(Clone, Debug, PartialEq)]
 pub struct Preset {
-    /// `standard` or `hard`.
+    /// `standard`, `hard` or `realistic`.
     pub name: &'static str,
     /// Detector.
     pub sensor: SensorModel,
     /// Odometry.
     pub odometry: OdometryModel,
+    /// How fast the car drives, up to [`SimConfig::speed`].
+    pub speed: SpeedProfile,
 }
 
 impl Preset {
@@ -99,6 +126,11 @@ impl Preset {
                 false_positives: 0.3,
                 id_swap: 0.01,
                 clutter_detection_probability: 0.3,
+                noise_dof: None,
+                far_detection_probability: None,
+                occlusion: false,
+                latency: 0.0,
+                tracker: TrackerModel::Oracle,
             },
             odometry: OdometryModel {
                 rate: 50.0,
@@ -107,7 +139,10 @@ impl Preset {
                 yaw_rate_sigma: 0.005,
                 yaw_rate_bias: 0.002,
                 steer_sigma: 0.005,
+                yaw_rate_bias_walk: 0.0,
+                sideslip: 0.0,
             },
+            speed: SpeedProfile::Constant,
         }
     }
 
@@ -130,11 +165,42 @@ impl Preset {
         p
     }
 
+    /// `standard`'s noise levels with what real cars and their perception
+    /// add: Student-t noise with 3 degrees of freedom, detection falling to
+    /// 0.6 at the range limit, occlusion by nearer cones, scans 50 ms old
+    /// when stamped, tracker ids from gated nearest neighbour (0.5 m, 2
+    /// misses), a yaw-rate bias random-walking at 5·10⁻⁴ rad/s/√s,
+    /// sideslip of 0.01 rad per m/s², and a speed that slows to 4 m/s² of
+    /// lateral acceleration in corners (accelerating and braking at 3 m/s²).
+    pub fn realistic() -> Preset {
+        let mut p = Preset::standard();
+        p.name = "realistic";
+        p.sensor.noise_dof = Some(3.0);
+        p.sensor.far_detection_probability = Some(0.6);
+        p.sensor.occlusion = true;
+        p.sensor.latency = 0.05;
+        p.sensor.tracker = TrackerModel::NearestNeighbour {
+            gate: 0.5,
+            max_misses: 2,
+        };
+        p.odometry.yaw_rate_bias_walk = 5e-4;
+        p.odometry.sideslip = 0.01;
+        p.speed = SpeedProfile::Corners {
+            lateral_acceleration: 4.0,
+            longitudinal_acceleration: 3.0,
+        };
+        p
+    }
+
+    /// The presets' names, as [`Preset::by_name`] takes them.
+    pub const NAMES: [&'static str; 3] = ["standard", "hard", "realistic"];
+
     /// A preset by name.
     pub fn by_name(name: &str) -> Option<Preset> {
         match name {
             "standard" => Some(Preset::standard()),
             "hard" => Some(Preset::hard()),
+            "realistic" => Some(Preset::realistic()),
             _ => None,
         }
     }
@@ -185,6 +251,16 @@ pub enum SimConfigError {
     /// Laps not in (0, [`MAX_LAPS`]].
     #[error("laps must be above 0 and at most {MAX_LAPS}, got {0}")]
     Laps(f64),
+    /// A preset setting out of its range.
+    #[error("the preset's {field} must be {rule}, got {value}")]
+    Model {
+        /// The setting.
+        field: &'static str,
+        /// What it must be.
+        rule: &'static str,
+        /// What it was.
+        value: f64,
+    },
     /// A speed outside [`SPEEDS`].
     #[error("speed must be from {min} to {max} m/s, got {0}", min = SPEEDS.start(), max = SPEEDS.end())]
     Speed(f64),
@@ -214,6 +290,7 @@ impl SimConfig {
         if !SPEEDS.contains(&self.speed) {
             return Err(SimConfigError::Speed(self.speed));
         }
+        self.preset.check()?;
         let laps = if course.is_closed() { self.laps } else { 1.0 };
         let seconds = laps * course.length() / self.speed;
         if seconds > MAX_DURATION {
@@ -225,6 +302,80 @@ impl SimConfig {
             });
         }
         Ok(())
+    }
+}
+
+impl Preset {
+    /// Checks the settings that a preset's effects rely on.
+    pub fn check(&self) -> Result<(), SimConfigError> {
+        let (s, o) = (&self.sensor, &self.odometry);
+        let probability = |p: f64| (0.0..=1.0).contains(&p);
+        let mut checks: Vec<(&'static str, f64, bool, &'static str)> = vec![
+            (
+                "latency",
+                s.latency,
+                (0.0..=1.0).contains(&s.latency),
+                "from 0 to 1 s",
+            ),
+            (
+                "yaw_rate_bias_walk",
+                o.yaw_rate_bias_walk,
+                (0.0..=1.0).contains(&o.yaw_rate_bias_walk),
+                "from 0 to 1 rad/s/√s",
+            ),
+            (
+                "sideslip",
+                o.sideslip,
+                (-0.5..=0.5).contains(&o.sideslip),
+                "from -0.5 to 0.5 rad per m/s²",
+            ),
+        ];
+        if let Some(dof) = s.noise_dof {
+            checks.push((
+                "noise_dof",
+                dof,
+                dof > 2.0 && dof.is_finite(),
+                "finite and above 2",
+            ));
+        }
+        if let Some(p) = s.far_detection_probability {
+            checks.push((
+                "far_detection_probability",
+                p,
+                probability(p),
+                "from 0 to 1",
+            ));
+        }
+        if let TrackerModel::NearestNeighbour { gate, .. } = s.tracker {
+            checks.push((
+                "tracker gate",
+                gate,
+                gate > 0.0 && gate <= 10.0,
+                "above 0 and at most 10 m",
+            ));
+        }
+        if let SpeedProfile::Corners {
+            lateral_acceleration: a,
+            longitudinal_acceleration: b,
+        } = self.speed
+        {
+            checks.push((
+                "lateral_acceleration",
+                a,
+                a > 0.0 && a <= 50.0,
+                "above 0 and at most 50 m/s²",
+            ));
+            checks.push((
+                "longitudinal_acceleration",
+                b,
+                b > 0.0 && b <= 50.0,
+                "above 0 and at most 50 m/s²",
+            ));
+        }
+        match checks.into_iter().find(|c| !c.2) {
+            Some((field, value, _, rule)) => Err(SimConfigError::Model { field, rule, value }),
+            None => Ok(()),
+        }
     }
 }
 
@@ -273,30 +424,6 @@ enum Source {
     FalsePositive,
 }
 
-/// Zero-mean Gaussian noise: σ times a standard normal draw (the same draws
-/// as `rand_distr::Normal`, which refuses some σ instead).
-struct Gaussian {
-    sigma: f64,
-}
-
-impl Distribution<f64> for Gaussian {
-    fn sample<R: Rng + ?Sized>(&self, rng: &mut R) -> f64 {
-        self.sigma * rng.sample::<f64, _>(StandardNormal)
-    }
-}
-
-/// Gaussian noise of standard deviation `sigma`, clamped to [1e-300,
-/// f64::MAX]: a noise-free sensor (σ = 0) or a configuration error
-/// (negative, NaN or infinite σ) still draws finite noise.
-fn gaussian(sigma: f64) -> Gaussian {
-    let sigma = if sigma.is_nan() {
-        1e-300
-    } else {
-        sigma.clamp(1e-300, f64::MAX)
-    };
-    Gaussian { sigma }
-}
-
 /// Cone centres closer than this (m) overlap: a small cone's base is
 /// 0.228 m across, so two such cones cannot both stand, and a detector sees
 /// one object there. Some track files list a cone twice, 0.10–0.11 m apart
@@ -319,9 +446,9 @@ pub fn hidden_by_overlap(cones: &[Cone]) -> Vec<bool> {
 pub fn simulate(track: &Track, course: &Course, config: &SimConfig) -> Simulation {
     let mut rng = StdRng::seed_from_u64(config.seed);
     let hidden = hidden_by_overlap(&track.cones);
-    let odo = &config.preset.odometry;
+    let (odo, sensor) = (&config.preset.odometry, &config.preset.sensor);
     let dt = 1.0 / odo.rate;
-    let scan_every = (odo.rate / config.preset.sensor.rate).round().max(1.0) as usize;
+    let scan_every = (odo.rate / sensor.rate).round().max(1.0) as usize;
     let distance = if course.is_closed() {
         config.laps * course.length()
     } else {
@@ -334,11 +461,23 @@ pub fn simulate(track: &Track, course: &Course, config: &SimConfig) -> Simulatio
     let mut log = vec![Record::Start { t: 0.0, pose }];
     let mut truth = Vec::new();
     let mut truth_associations = Vec::new();
-    let mut tracker = Tracker::default();
+    let mut tracker = Tracker::new(sensor.tracker);
+    // The poses of the last `latency` seconds, newest last: a scan sees
+    // from the oldest.
+    let delay = (sensor.latency * odo.rate).round() as usize;
+    let mut recent: VecDeque<SE2> = VecDeque::with_capacity(delay + 1);
+    let mut bias = odo.yaw_rate_bias;
+    let mut speed = config.speed;
+    // The motion the odometry measured since the last scan, for the tracker.
+    let mut measured = SE2::identity();
     let mut scan = 0;
     let mut step = 0usize;
     // A hard cap guards against a car that cannot make progress.
-    let max_steps = ((distance / config.speed.max(0.1)) * odo.rate * 3.0) as usize + 100;
+    let slowest = match config.preset.speed {
+        SpeedProfile::Constant => config.speed,
+        SpeedProfile::Corners { .. } => config.speed.min(2.0),
+    };
+    let max_steps = ((distance / slowest.max(0.1)) * odo.rate * 3.0) as usize + 100;
     while travelled < distance && step < max_steps {
         let t = step as f64 * dt;
         // Pure pursuit toward the centre line `lookahead` metres ahead.
@@ -349,25 +488,36 @@ pub fn simulate(track: &Track, course: &Course, config: &SimConfig) -> Simulatio
         let steer = (2.0 * config.wheelbase * alpha.sin() / target.norm().max(0.5))
             .atan()
             .clamp(-0.6, 0.6);
-        let v = config.speed;
+        let curvature = 2.0 * alpha.sin() / target.norm().max(0.5);
+        let v = speed;
         let yaw_rate = v * steer.tan() / config.wheelbase;
         truth.push(StampedPose { t, pose });
+        let odom = (
+            v * (1.0 + odo.speed_scale_bias) + Noise::gaussian(odo.speed_sigma).sample(&mut rng),
+            yaw_rate + bias + Noise::gaussian(odo.yaw_rate_sigma).sample(&mut rng),
+        );
         log.push(Record::Odom {
             t,
-            v: v * (1.0 + odo.speed_scale_bias) + gaussian(odo.speed_sigma).sample(&mut rng),
-            yaw_rate: yaw_rate + odo.yaw_rate_bias + gaussian(odo.yaw_rate_sigma).sample(&mut rng),
-            steer: Some(steer + gaussian(odo.steer_sigma).sample(&mut rng)),
+            v: odom.0,
+            yaw_rate: odom.1,
+            steer: Some(steer + Noise::gaussian(odo.steer_sigma).sample(&mut rng)),
             vy: None,
         });
+        if recent.len() > delay {
+            recent.pop_front();
+        }
+        recent.push_back(pose);
         if step.is_multiple_of(scan_every) {
+            let seen_from = recent.front().copied().unwrap_or(pose);
             let (cones, sources) = detect(
                 track,
                 &hidden,
-                &pose,
-                &config.preset.sensor,
-                &mut tracker,
+                &seen_from,
+                sensor,
+                (&mut tracker, &measured),
                 &mut rng,
             );
+            measured = SE2::identity();
             for (det, source) in sources.iter().enumerate() {
                 truth_associations.push(Association {
                     scan,
@@ -381,8 +531,14 @@ pub fn simulate(track: &Track, course: &Course, config: &SimConfig) -> Simulatio
             log.push(Record::Cones { t, cones });
             scan += 1;
         }
-        // Integrate the bicycle model exactly over the step (constant v, ω).
-        pose = integrate(&pose, v, yaw_rate, dt);
+        measured = integrate(&measured, odom.0, odom.1, dt);
+        if odo.yaw_rate_bias_walk > 0.0 {
+            bias += Noise::gaussian(odo.yaw_rate_bias_walk * dt.sqrt()).sample(&mut rng);
+        }
+        // Integrate the bicycle model exactly over the step (constant v, ω),
+        // the velocity turned by the sideslip of the lateral acceleration.
+        let sideslip = odo.sideslip * v * yaw_rate;
+        pose = integrate_with_sideslip(&pose, v, yaw_rate, sideslip, dt);
         let s_new = course.project(&pose.t, Some(s), 10.0);
         let mut ds = s_new - s;
         if course.is_closed() {
@@ -391,6 +547,7 @@ pub fn simulate(track: &Track, course: &Course, config: &SimConfig) -> Simulatio
         }
         travelled += ds;
         s = s_new;
+        speed = config.preset.speed.next(speed, config.speed, curvature, dt);
         step += 1;
     }
     Simulation {
@@ -402,149 +559,10 @@ pub fn simulate(track: &Track, course: &Course, config: &SimConfig) -> Simulatio
     }
 }
 
-/// Tracker identities: an object keeps its id while seen in recent scans.
-#[derive(Default)]
-struct Tracker {
-    ids: HashMap<Source, (u64, usize)>,
-    next: u64,
-    scan: usize,
-}
-
-impl Tracker {
-    fn id(&mut self, source: Source) -> u64 {
-        let scan = self.scan;
-        if source == Source::FalsePositive {
-            self.next += 1;
-            return self.next;
-        }
-        match self.ids.get_mut(&source) {
-            Some((id, last)) if scan <= *last + 3 => {
-                *last = scan;
-                *id
-            }
-            _ => {
-                self.next += 1;
-                self.ids.insert(source, (self.next, scan));
-                self.next
-            }
-        }
-    }
-}
-
-/// One scan from `pose`. A cone `hidden` by an overlapping one draws its
-/// noise like any other (so that hiding it leaves every other detection's
-/// draws as they were) but is not reported.
-fn detect(
-    track: &Track,
-    hidden: &[bool],
-    pose: &SE2,
-    sensor: &SensorModel,
-    tracker: &mut Tracker,
-    rng: &mut StdRng,
-) -> (Vec<Detection>, Vec<Source>) {
-    let inverse = pose.inverse();
-    let bearing_noise = gaussian(sensor.bearing_sigma);
-    let mut found: Vec<(Source, Vector2<f64>, Color)> = Vec::new();
-    let objects = track
-        .cones
-        .iter()
-        .enumerate()
-        .map(|(i, c)| (Source::Cone(i), c.position, c.color))
-        .chain(
-            track
-                .clutter
-                .iter()
-                .enumerate()
-                .map(|(i, p)| (Source::Clutter(i), *p, Color::Unknown)),
-        );
-    for (source, world, color) in objects {
-        let local = inverse.transform_point(&world);
-        let (r, b) = (local.norm(), local.y.atan2(local.x));
-        if r > sensor.max_range || r < 0.5 || b.abs() > sensor.fov / 2.0 {
-            continue;
-        }
-        let (probability, color) = match source {
-            Source::Clutter(_) => (
-                sensor.clutter_detection_probability,
-                [Color::Blue, Color::Yellow, Color::Unknown][rng.random_range(0..3)],
-            ),
-            _ => (sensor.detection_probability, color),
-        };
-        if rng.random::<f64>() < probability {
-            found.push((source, local, color));
-        }
-    }
-    let fp = Poisson::new(sensor.false_positives.max(1e-12))
-        .map(|p| p.sample(rng) as usize)
-        .unwrap_or(0);
-    for _ in 0..fp {
-        let r = rng.random_range(1.0..sensor.max_range);
-        let b = rng.random_range(-sensor.fov / 2.0..sensor.fov / 2.0);
-        let color = [Color::Blue, Color::Yellow, Color::Unknown][rng.random_range(0..3)];
-        found.push((
-            Source::FalsePositive,
-            Vector2::new(r * b.cos(), r * b.sin()),
-            color,
-        ));
-    }
-    found.shuffle(rng);
-    tracker.scan += 1;
-    let mut ids: Vec<u64> = found.iter().map(|(s, _, _)| tracker.id(*s)).collect();
-    if found.len() >= 2 && rng.random::<f64>() < sensor.id_swap {
-        // Swap the ids of two tracked objects less than 3 m apart.
-        let i = rng.random_range(0..found.len());
-        let near = (0..found.len()).find(|&j| {
-            j != i
-                && found[j].0 != Source::FalsePositive
-                && found[i].0 != Source::FalsePositive
-                && (found[j].1 - found[i].1).norm() < 3.0
-        });
-        if let Some(j) = near {
-            ids.swap(i, j);
-            for k in [i, j] {
-                if let Some(entry) = tracker.ids.get_mut(&found[k].0) {
-                    entry.0 = ids[k];
-                }
-            }
-        }
-    }
-    let mut detections = Vec::with_capacity(found.len());
-    let mut sources = Vec::with_capacity(found.len());
-    for ((source, local, color), id) in found.into_iter().zip(ids) {
-        let r = local.norm();
-        let range_noise = gaussian(sensor.range_sigma + sensor.range_sigma_relative * r);
-        let r = (r + range_noise.sample(rng)).max(0.0);
-        let b = local.y.atan2(local.x) + bearing_noise.sample(rng);
-        let u: f64 = rng.random();
-        let color = if u < sensor.unknown_color {
-            Color::Unknown
-        } else if u < sensor.unknown_color + sensor.wrong_color {
-            match color {
-                Color::Blue => Color::Yellow,
-                Color::Yellow => Color::Blue,
-                Color::Orange => Color::BigOrange,
-                Color::BigOrange => Color::Orange,
-                Color::Unknown => Color::Unknown,
-            }
-        } else {
-            color
-        };
-        if matches!(source, Source::Cone(i) if hidden[i]) {
-            continue;
-        }
-        detections.push(Detection {
-            position: Vector2::new(r * b.cos(), r * b.sin()),
-            range_bearing: Some((r, b)),
-            color,
-            id: Some(id),
-            covariance: None,
-        });
-        sources.push(source);
-    }
-    (detections, sources)
-}
-
+mod detector;
+mod effects;
 mod scanner;
+mod tracker;
 pub use scanner::point_clouds;
 
 #[cfg(test)]

@@ -1,6 +1,7 @@
 //! The Formula Student commands `fs-sim` and `fs-slam` (`fs-eval` is in `fs_eval.rs`).
 
 mod settings;
+mod sim_effects;
 
 use super::{CliError, bad_input, write_output};
 use cairn::fs_tools::Track;
@@ -28,9 +29,14 @@ pub struct SimArgs {
     /// rule-conforming track is generated from `--seed`.
     #[arg(long)]
     track: Option<PathBuf>,
-    /// Sensor and odometry errors: `standard` or `hard`.
-    #[arg(long, default_value = "standard", value_parser = ["standard", "hard"])]
+    /// Sensor and odometry errors: `standard`, `hard` or `realistic`
+    /// (`standard`'s noise levels with heavy tails, occlusion, detection
+    /// falling with range, latency, a nearest-neighbour tracker, a drifting
+    /// gyro bias, sideslip and slowing for corners).
+    #[arg(long, default_value = "standard", value_parser = ["standard", "hard", "realistic"])]
     preset: String,
+    #[command(flatten)]
+    effects: sim_effects::SimEffects,
     /// Laps to drive, above 0 and at most 1000 (acceleration runs are driven once).
     #[arg(long, default_value_t = 2.0)]
     laps: f64,
@@ -210,7 +216,8 @@ fn track_rules(a: &SimArgs) -> Result<TrackRules, CliError> {
 
 pub fn run_sim(a: SimArgs) -> Result<(), super::CliError> {
     let preset = Preset::by_name(&a.preset)
-        .ok_or_else(|| CliError::usage("--preset must be standard or hard"))?;
+        .ok_or_else(|| CliError::usage("--preset must be standard, hard or realistic"))?;
+    let preset = a.effects.apply(preset)?;
     let rules = track_rules(&a)?;
     let (track, course) = match &a.track {
         Some(path) => {
@@ -231,7 +238,7 @@ pub fn run_sim(a: SimArgs) -> Result<(), super::CliError> {
         CliError::usage(match e {
             // The library names the setting; the command line, its flag.
             SimConfigError::Laps(_) | SimConfigError::Speed(_) => format!("--{e}"),
-            SimConfigError::TooLong { .. } => e.to_string(),
+            SimConfigError::TooLong { .. } | SimConfigError::Model { .. } => e.to_string(),
         })
     })?;
     let mut sim = simulate(&track, &course, &config);
@@ -265,12 +272,9 @@ pub fn run_sim(a: SimArgs) -> Result<(), super::CliError> {
             sim.lost_sightings
         );
     }
-    if a.preset != "standard" {
+    if a.preset == "hard" {
         // The log does not say how noisy its detector is (FORMAT.md).
-        eprintln!(
-            "run fs-slam on it with `--noise {}`: its gates assume the detector's noise",
-            a.preset
-        );
+        eprintln!("run fs-slam on it with `--noise hard`: its gates assume the detector's noise");
     }
     Ok(())
 }

@@ -1,7 +1,10 @@
 //! The scanner variant of a simulated run: the points a 3D scanner would
 //! return instead of cone detections.
 
+use super::effects::Noise;
 use super::*;
+use rand::Rng;
+use std::collections::HashMap;
 
 /// Base radius and height of a big orange cone (m).
 const BIG_CONE: (f64, f64) = (0.142, 0.505);
@@ -24,7 +27,7 @@ pub fn point_clouds(
     seed: u64,
 ) -> Simulation {
     let mut rng = StdRng::seed_from_u64(seed);
-    let noise = gaussian(0.01);
+    let noise = Noise::gaussian(0.01);
     let truth_at: HashMap<u64, SE2> = sim.truth.iter().map(|p| (p.t.to_bits(), p.pose)).collect();
     let mut sources = sim.truth_associations.iter().peekable();
     let mut log = Vec::with_capacity(sim.log.len());
@@ -141,7 +144,7 @@ fn cone_surface(
     centre: &Vector2<f64>,
     color: Color,
     rng: &mut StdRng,
-    noise: &Gaussian,
+    noise: &Noise,
 ) -> Vec<[f64; 3]> {
     let (base, height) = if color == Color::BigOrange {
         BIG_CONE

@@ -1,4 +1,5 @@
 use super::*;
+use rand::SeedableRng;
 
 fn cone_at(x: f64, y: f64) -> Cone {
     Cone {
@@ -45,10 +46,10 @@ fn a_cone_listed_twice_is_detected_as_one() {
 fn noise_of_any_sigma_can_be_drawn() {
     let mut rng = StdRng::seed_from_u64(1);
     for sigma in [0.0, -1.0, f64::NAN, f64::INFINITY, 1e-320, 0.05] {
-        let x = gaussian(sigma).sample(&mut rng);
+        let x = effects::Noise::gaussian(sigma).sample(&mut rng);
         assert!(!x.is_nan(), "σ {sigma}: {x}");
     }
-    assert!(gaussian(0.0).sample(&mut rng).abs() < 1e-290);
+    assert!(effects::Noise::gaussian(0.0).sample(&mut rng).abs() < 1e-290);
 }
 
 #[test]
