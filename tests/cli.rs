@@ -529,7 +529,15 @@ fn help_lists_the_choices_and_groups_the_options() {
     }
     let o = cairn(&["fs-sim", "--preset", "wet", "-o", "unused"]);
     assert_eq!(o.status.code(), Some(2));
-    assert!(stderr(&o).contains("[possible values: standard, hard]"));
+    assert!(stderr(&o).contains("[possible values: standard, hard, realistic]"));
+    // A preset effect out of range names its flag.
+    let o = cairn(&["fs-sim", "--latency", "5", "-o", "unused"]);
+    assert_eq!(o.status.code(), Some(2));
+    assert!(
+        stderr(&o).contains("--latency must be from 0 to 1 s"),
+        "{}",
+        stderr(&o)
+    );
 }
 
 /// Shell completions and man pages come from the command-line definitions.

@@ -66,6 +66,10 @@ pub struct Report {
     pub loop_closure_ms: Option<f64>,
     /// The optimisation at the end of the run (ms).
     pub final_optimisation_ms: Option<f64>,
+    /// The detector's σ (range, its growth with range, bearing) as assumed
+    /// and as the estimator learned it, where it learns it.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub detector_sigma: Option<[[f64; 3]; 2]>,
     /// Optimisations that failed during the run, the estimate kept.
     #[serde(skip_serializing_if = "Vec::is_empty")]
     pub warnings: Vec<String>,

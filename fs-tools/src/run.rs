@@ -113,6 +113,7 @@ pub fn score(sim: &Simulation, slam: &dyn Estimator) -> Report {
         with_lost(report.association_accuracy_majority, scored, sim);
     report.detections += sim.lost_sightings;
     report.latency_ms = latency_ms(&slam.timing().updates);
+    report.detector_sigma = slam.detector_noise().map(|n| [n.assumed, n.estimated]);
     report.loop_closure_ms = slam
         .timing()
         .loop_closures

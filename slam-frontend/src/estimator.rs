@@ -6,7 +6,7 @@
 use crate::files::{Association, StampedPose};
 use crate::filter::ekf::EkfSlam;
 use crate::filter::fastslam::{FastSlam, ParticleConfig, Version};
-use crate::frontend::{FrontEndConfig, GraphSlam, Mode, OptimiseError, Timing};
+use crate::frontend::{DetectorNoise, FrontEndConfig, GraphSlam, Mode, OptimiseError, Timing};
 use crate::log::Record;
 use crate::map::Cone;
 use crate::points::{Clustered, PointCloudConfig};
@@ -29,6 +29,12 @@ pub trait Estimator {
     /// found on the map again (the graph front end's relocalisation).
     fn relocalisations(&self) -> usize {
         0
+    }
+    /// The detector's noise as assumed and as learned from the matches
+    /// (the graph front end with `learn_detector_noise`); `None` where the
+    /// estimator does not learn it.
+    fn detector_noise(&self) -> Option<DetectorNoise> {
+        None
     }
     /// Mapping or localising.
     fn mode(&self) -> Mode;
@@ -198,6 +204,9 @@ impl Estimator for GraphSlam {
     }
     fn relocalisations(&self) -> usize {
         GraphSlam::relocalisations(self)
+    }
+    fn detector_noise(&self) -> Option<DetectorNoise> {
+        GraphSlam::detector_noise(self)
     }
     fn mode(&self) -> Mode {
         GraphSlam::mode(self)

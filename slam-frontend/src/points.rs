@@ -367,6 +367,9 @@ impl Estimator for Clustered {
     fn loop_closures(&self) -> usize {
         self.inner.loop_closures()
     }
+    fn detector_noise(&self) -> Option<crate::frontend::DetectorNoise> {
+        self.inner.detector_noise()
+    }
     fn mode(&self) -> Mode {
         self.inner.mode()
     }

@@ -128,6 +128,11 @@ pub struct SlamArgs {
     /// associations written are then those made in real time.
     #[arg(long)]
     no_hindsight: bool,
+    /// Learn the detector's noise from the matches while driving (graph
+    /// estimator), for a detector whose σ is not known well: prints what it
+    /// learned. Off unless given here or in the config.
+    #[arg(long)]
+    learn_noise: bool,
     /// Skip and count malformed log lines instead of stopping at the first.
     #[arg(long)]
     skip_bad: bool,
@@ -374,6 +379,9 @@ pub fn run_slam(a: SlamArgs) -> Result<(), super::CliError> {
         "updates_s": slam.timing().updates,
         "loop_closures_s": slam.timing().loop_closures,
         "final_s": slam.timing().final_optimisation,
+        "detector_sigma": slam.detector_noise().map(|n| {
+            serde_json::json!({"assumed": n.assumed, "estimated": n.estimated})
+        }),
     })
     .to_string();
     for (path, text) in [
@@ -407,5 +415,25 @@ pub fn run_slam(a: SlamArgs) -> Result<(), super::CliError> {
         lat[2],
         lat[3]
     );
+    if let Some(noise) = slam.detector_noise() {
+        eprintln!("detector noise {}", describe_noise(&noise));
+    }
     Ok(())
+}
+
+/// The detector's σ as assumed and as learned, in the units people read.
+fn describe_noise(noise: &cairn::slam::frontend::DetectorNoise) -> String {
+    let show = |[r, relative, b]: [f64; 3]| {
+        format!(
+            "σ_r {r:.3} m + {:.2}%, σ_b {:.2}°",
+            100.0 * relative,
+            b.to_degrees()
+        )
+    };
+    format!(
+        "assumed {}; learned {} (variance ×{:.2})",
+        show(noise.assumed),
+        show(noise.estimated),
+        noise.variance_scale
+    )
 }

@@ -103,6 +103,19 @@ pub fn run_eval(a: EvalArgs) -> Result<(), super::CliError> {
             .reduce(f64::max)
             .map(|s| s * 1e3);
         report.final_optimisation_ms = v.get("final_s").and_then(|x| x.as_f64()).map(|s| s * 1e3);
+        let sigma = |key: &str| -> Option<[f64; 3]> {
+            let list: Vec<f64> = v
+                .get("detector_sigma")?
+                .get(key)?
+                .as_array()?
+                .iter()
+                .filter_map(|x| x.as_f64())
+                .collect();
+            list.try_into().ok()
+        };
+        report.detector_sigma = sigma("assumed")
+            .zip(sigma("estimated"))
+            .map(|(a, e)| [a, e]);
     }
     if let Some(path) = &a.plot {
         plot_run(
@@ -233,6 +246,17 @@ pub fn table(r: &Report) -> String {
     }
     if let Some(ms) = r.final_optimisation_ms {
         rows.push(("final optimisation (ms)".into(), format!("{ms:.1}")));
+    }
+    if let Some([assumed, learned]) = r.detector_sigma {
+        let show = |[r, relative, b]: [f64; 3]| {
+            format!(
+                "{r:.3} m + {:.2}% / {:.2}°",
+                100.0 * relative,
+                b.to_degrees()
+            )
+        };
+        rows.push(("detector σ_r / σ_b, assumed".into(), show(assumed)));
+        rows.push(("  learned".into(), show(learned)));
     }
     let width = rows
         .iter()

@@ -14,6 +14,7 @@ pub mod grid;
 mod hindsight;
 mod landmarks;
 mod loop_closure;
+mod noise;
 mod optimise;
 mod pose;
 mod relocalise;
@@ -22,6 +23,7 @@ pub use calibration::Calibration;
 pub use config::{ConfigError, FrontEndConfig};
 use edges::OdometryEdge;
 pub use edges::nearest_information;
+pub use noise::DetectorNoise;
 pub(crate) use optimise::MERGE_RADIUS;
 
 use crate::files::{Association, StampedPose};
@@ -131,6 +133,9 @@ pub struct GraphSlam {
     /// The motion since the last scan that matched a landmark, and its
     /// covariance: how far the pose may have drifted from the map.
     drift: (SE2, Matrix3<f64>),
+    /// The detector's noise as configured, and as learned from the matches.
+    assumed_noise: [f64; 3],
+    noise: noise::NoiseLearner,
 }
 
 impl GraphSlam {
@@ -138,6 +143,11 @@ impl GraphSlam {
     pub fn new(config: FrontEndConfig) -> Self {
         let window = window::Window::new(config.yaw_rate_sigma);
         let colors = ColorRate::new(&config);
+        let assumed_noise = [
+            config.range_sigma,
+            config.range_sigma_relative,
+            config.bearing_sigma,
+        ];
         Self {
             motion: Odometry::new(config.motion, config.motion_noise()),
             config,
@@ -167,6 +177,8 @@ impl GraphSlam {
             lost_scans: Vec::new(),
             relocalisations: 0,
             drift: (SE2::identity(), Matrix3::zeros()),
+            assumed_noise,
+            noise: noise::NoiseLearner::new(),
         }
     }
 
@@ -356,6 +368,9 @@ impl GraphSlam {
 
         // Local pose optimisation: odometry prior plus the matched landmarks.
         let (pose, pose_cov) = self.localise(&pred, &pred_cov, cones, &covs, &assigned);
+        if self.config.learn_detector_noise {
+            self.learn_noise(&pose, cones, &covs, &assigned);
+        }
         let anchors = assigned
             .iter()
             .flatten()

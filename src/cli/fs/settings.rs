@@ -59,6 +59,9 @@ pub(super) fn slam_config(a: &SlamArgs, kind: EstimatorKind) -> Result<FrontEndC
     if a.no_hindsight {
         config.hindsight = false;
     }
+    if a.learn_noise {
+        config.learn_detector_noise = true;
+    }
     let noise = a.odometry_noise.as_deref();
     if !matches!(noise, None | Some("velocity" | "rot-trans-rot")) {
         return Err(CliError::usage(
