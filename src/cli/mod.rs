@@ -6,6 +6,7 @@ mod exit;
 mod fs;
 mod fs_eval;
 mod fs_import;
+mod fs_mismatch;
 mod fs_report;
 mod fs_targets;
 mod generate;
@@ -63,6 +64,9 @@ enum Command {
     FsSmooth(fs_import::SmoothArgs),
     /// Simulate, map and score every shared and some random tracks into a report.
     FsReport(fs_report::ReportArgs),
+    /// Map logs that differ from what the estimator assumes (noise, heavy
+    /// tails, a drifting gyro, no start line, the realistic preset) into a report.
+    FsMismatch(fs_mismatch::MismatchArgs),
     /// Compare the estimators (graph, EKF-SLAM, FastSLAM 1.0/2.0) on simulated
     /// runs into docs/estimators.md with plots.
     FsStudy(study::StudyArgs),
@@ -87,6 +91,7 @@ pub fn run(cli: Cli) -> Result<(), CliError> {
         Command::FsImport(args) => fs_import::run(args),
         Command::FsSmooth(args) => fs_import::run_smooth(args),
         Command::FsReport(args) => fs_report::run(args),
+        Command::FsMismatch(args) => fs_mismatch::run(args),
         Command::FsStudy(args) => study::run(args),
         Command::Completions(args) => shell::completions(args),
         Command::Man(args) => shell::man(args),
