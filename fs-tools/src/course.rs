@@ -292,6 +292,24 @@ fn smooth_closed(points: &[Vector2<f64>], half_window: usize) -> Vec<Vector2<f64
         .collect()
 }
 
+/// The pose on the start line of `track` (between its big orange cones,
+/// facing along `course`): where a car that starts on the line stands.
+/// `None` for a track without big orange cones.
+pub fn start_on_line(track: &Track, course: &Course) -> Option<SE2> {
+    let line = track.of_color(Color::BigOrange);
+    if line.is_empty() {
+        return None;
+    }
+    let centre = line
+        .iter()
+        .map(|&i| track.cones[i].position)
+        .sum::<Vector2<f64>>()
+        / line.len() as f64;
+    let s = course.project(&centre, None, 0.0);
+    let (on, ahead) = (course.point_at(s), course.point_at(s + 1.0));
+    Some(SE2::new(on.x, on.y, (ahead - on).y.atan2((ahead - on).x)))
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -310,5 +328,25 @@ mod tests {
         assert!(Course::new(huge, false).is_err());
         let point = vec![Vector2::new(3.0, 4.0); 6];
         assert!(Course::new(point, true).is_err(), "a course of zero length");
+    }
+
+    #[test]
+    fn the_start_line_pose_stands_between_the_big_orange_cones() {
+        let (mut track, course) = crate::trackgen::random_track(1, &Default::default());
+        let start = start_on_line(&track, &course).expect("random tracks have a start line");
+        let line = track.of_color(Color::BigOrange);
+        let centre = line
+            .iter()
+            .map(|&i| track.cones[i].position)
+            .sum::<Vector2<f64>>()
+            / line.len() as f64;
+        assert!((start.t - centre).norm() < 0.5, "{start:?} vs {centre}");
+        // Facing along the course, as the file's start does.
+        let d = (start.theta - track.start.theta + std::f64::consts::PI)
+            .rem_euclid(std::f64::consts::TAU)
+            - std::f64::consts::PI;
+        assert!(d.abs() < 0.3, "{start:?} vs {:?}", track.start);
+        track.cones.retain(|c| c.color != Color::BigOrange);
+        assert!(start_on_line(&track, &course).is_none());
     }
 }

@@ -68,7 +68,9 @@ pub fn fs_slam<'py>(
             FrontEndConfig::from_toml(&text)
                 .map_err(|e| PyValueError::new_err(format!("{}: {e}", path.display())))?
         }
-        None => assumed_config("standard", method, kind).expect("the preset has a shipped config"),
+        None => assumed_config("standard", method, kind).ok_or_else(|| {
+            PyValueError::new_err("the shipped configs/standard.toml does not read")
+        })?,
     };
     settings.association = method;
     let bytes = read(&log_path)?;
@@ -135,7 +137,9 @@ pub fn fs_sim(
     preset: &str,
 ) -> PyResult<Vec<PathBuf>> {
     let preset = Preset::by_name(preset).ok_or_else(|| {
-        PyValueError::new_err(format!("preset must be standard or hard, got {preset:?}"))
+        PyValueError::new_err(format!(
+            "preset must be standard, hard or realistic, got {preset:?}"
+        ))
     })?;
     let (track, course) = match &track {
         Some(path) => {

@@ -5,7 +5,7 @@ mod sim_effects;
 
 use super::{CliError, bad_input, write_output};
 use cairn::fs_tools::Track;
-use cairn::fs_tools::course::Course;
+use cairn::fs_tools::course::{Course, start_on_line};
 use cairn::fs_tools::eval::latency_ms;
 use cairn::fs_tools::run::run_log;
 use cairn::fs_tools::sim::{Preset, SimConfig, SimConfigError, point_clouds, simulate};
@@ -56,6 +56,10 @@ pub struct SimArgs {
     /// as tight as the EUFS tracks.
     #[arg(long, value_name = "MIN[,MAX]", value_delimiter = ',', num_args = 1..=2)]
     cone_spacing: Option<Vec<f64>>,
+    /// Start on the start line (between the big orange cones) instead of
+    /// where the track file puts the car.
+    #[arg(long)]
+    start_on_line: bool,
     /// Output directory: log.jsonl, truth_traj.tum, truth_assoc.csv, truth_map.csv.
     #[arg(short, long)]
     out: PathBuf,
@@ -232,6 +236,12 @@ pub fn run_sim(a: SimArgs) -> Result<(), super::CliError> {
         }
         None => random_track(a.track_seed.unwrap_or(a.seed), &rules),
     };
+    let mut track = track;
+    if a.start_on_line {
+        track.start = start_on_line(&track, &course).ok_or_else(|| {
+            CliError::usage("--start-on-line needs a track with big orange cones")
+        })?;
+    }
     let config = SimConfig {
         preset,
         laps: a.laps,

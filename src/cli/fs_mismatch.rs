@@ -5,9 +5,8 @@
 
 use super::fs_report::{Tracks, load_tracks};
 use super::progress::Progress;
-use cairn::core::SE2;
 use cairn::fs_tools::configs::assumed_config;
-use cairn::fs_tools::course::Course;
+use cairn::fs_tools::course::{Course, start_on_line};
 use cairn::fs_tools::eval::Report;
 use cairn::fs_tools::run::run_and_score;
 use cairn::fs_tools::sim::{Preset, SimConfig, simulate};
@@ -102,21 +101,7 @@ impl Case {
                 track.cones.retain(|c| c.color != Color::BigOrange);
                 course = Course::from_track(&track).ok()?;
             }
-            Case::StartOnLine => {
-                let line: Vec<_> = track.of_color(Color::BigOrange);
-                if line.is_empty() {
-                    return None;
-                }
-                let centre = line
-                    .iter()
-                    .map(|&i| track.cones[i].position)
-                    .sum::<nalgebra::Vector2<f64>>()
-                    / line.len() as f64;
-                let s = course.project(&centre, None, 0.0);
-                let ahead = course.point_at(s + 1.0) - course.point_at(s);
-                let on = course.point_at(s);
-                track.start = SE2::new(on.x, on.y, ahead.y.atan2(ahead.x));
-            }
+            Case::StartOnLine => track.start = start_on_line(&track, &course)?,
             Case::Realistic => preset = Preset::realistic(),
         }
         Some((track, course, preset))
