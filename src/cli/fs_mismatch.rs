@@ -3,7 +3,7 @@
 //! simulated, mapped by the graph front end told `configs/standard.toml`,
 //! and scored.
 
-use super::fs_report::{Tracks, load_tracks};
+use super::fs_report::{TrackSet, Tracks};
 use super::progress::Progress;
 use cairn::fs_tools::configs::assumed_config;
 use cairn::fs_tools::course::{Course, start_on_line};
@@ -22,15 +22,8 @@ use std::path::PathBuf;
 /// Options of `cairn fs-mismatch`.
 #[derive(Debug, Args)]
 pub struct MismatchArgs {
-    /// Directory of track files (the shared tracks).
-    #[arg(long, default_value = "../shared/tracks")]
-    tracks: PathBuf,
-    /// Random generated tracks to add, 0 to 1000.
-    #[arg(long, default_value_t = 3, value_parser = clap::builder::RangedU64ValueParser::<u64>::new().range(0..=1000))]
-    random: u64,
-    /// Seeds per configuration, 1 to 1000.
-    #[arg(long, default_value_t = 5, value_parser = clap::builder::RangedU64ValueParser::<u64>::new().range(1..=1000))]
-    seeds: u64,
+    #[command(flatten)]
+    set: TrackSet,
     /// The first seed (pick seeds nothing was tuned on).
     #[arg(long, default_value_t = 100)]
     first_seed: u64,
@@ -119,12 +112,12 @@ struct Run {
 }
 
 pub fn run(a: MismatchArgs) -> Result<(), super::CliError> {
-    let (tracks, _) = load_tracks(&a.tracks, a.random)?;
+    let (tracks, _) = a.set.load()?;
     let mut jobs = Vec::new();
     for case in CASES {
         for t in 0..tracks.len() {
             for method in AssociationMethod::ALL {
-                for seed in a.first_seed..a.first_seed + a.seeds {
+                for seed in a.first_seed..a.first_seed + a.set.seeds {
                     jobs.push((case, t, method, seed));
                 }
             }
@@ -189,14 +182,14 @@ fn markdown(a: &MismatchArgs, tracks: &Tracks, runs: &[Run]) -> String {
          for every log; each log is `standard` but for the case. Scored as in \
          `docs/fs-slam.md`: association with each true cone standing for one landmark, the \
          map matched one-to-one. `mean` is over runs; `worst` the worst run.\n",
-        a.seeds,
-        a.random,
+        a.set.seeds,
+        a.set.random,
         a.first_seed,
         a.out.display(),
         runs.len(),
         tracks.len(),
         CASES.len(),
-        a.seeds
+        a.set.seeds
     );
     let _ = writeln!(
         md,

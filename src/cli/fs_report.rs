@@ -19,18 +19,32 @@ use rayon::prelude::*;
 use std::fmt::Write as _;
 use std::path::PathBuf;
 
+/// The tracks and seeds of a report (`fs-report`, `fs-mismatch`).
+#[derive(Debug, Args)]
+pub struct TrackSet {
+    /// Directory of track files (the shared tracks).
+    #[arg(long, default_value = "../shared/tracks")]
+    pub tracks: PathBuf,
+    /// Random generated tracks to add, 0 to 1000.
+    #[arg(long, default_value_t = 3, value_parser = clap::builder::RangedU64ValueParser::<u64>::new().range(0..=1000))]
+    pub random: u64,
+    /// Seeds per configuration, 1 to 1000.
+    #[arg(long, default_value_t = 5, value_parser = clap::builder::RangedU64ValueParser::<u64>::new().range(1..=1000))]
+    pub seeds: u64,
+}
+
+impl TrackSet {
+    /// The closed tracks with a centre line (and why others were left out).
+    pub fn load(&self) -> Result<(Tracks, Vec<String>), String> {
+        load_tracks(&self.tracks, self.random)
+    }
+}
+
 /// Options of `cairn fs-report`.
 #[derive(Debug, Args)]
 pub struct ReportArgs {
-    /// Directory of track files (the shared tracks).
-    #[arg(long, default_value = "../shared/tracks")]
-    tracks: PathBuf,
-    /// Random generated tracks to add, 0 to 1000.
-    #[arg(long, default_value_t = 3, value_parser = clap::builder::RangedU64ValueParser::<u64>::new().range(0..=1000))]
-    random: u64,
-    /// Seeds per configuration, 1 to 1000.
-    #[arg(long, default_value_t = 5, value_parser = clap::builder::RangedU64ValueParser::<u64>::new().range(1..=1000))]
-    seeds: u64,
+    #[command(flatten)]
+    set: TrackSet,
     /// The first seed: the runs take `first-seed` to `first-seed + seeds − 1`,
     /// so that a change can be judged on seeds it was not tuned on.
     #[arg(long, default_value_t = 0)]
@@ -61,13 +75,13 @@ pub fn run(a: ReportArgs) -> Result<(), super::CliError> {
             a.laps
         )));
     }
-    let (tracks, skipped) = load_tracks(&a.tracks, a.random)?;
+    let (tracks, skipped) = a.set.load()?;
     let presets = [Preset::standard(), Preset::hard()];
     let mut jobs = Vec::new();
     for t in 0..tracks.len() {
         for p in &presets {
             for m in AssociationMethod::ALL {
-                for seed in a.first_seed..a.first_seed + a.seeds {
+                for seed in a.first_seed..a.first_seed + a.set.seeds {
                     jobs.push((t, p.clone(), m, seed));
                 }
             }
@@ -120,8 +134,8 @@ pub fn run(a: ReportArgs) -> Result<(), super::CliError> {
          optimisation and matching again, all of it), both on this 2-core machine; final the optimisation at the end of the run that refines the map with every \
          lap's sightings (not in the real-time loop). Map, trajectory and association are \
          scored after it.\n",
-        a.seeds,
-        a.random,
+        a.set.seeds,
+        a.set.random,
         if a.first_seed > 0 {
             format!(" --first-seed {}", a.first_seed)
         } else {
@@ -130,7 +144,7 @@ pub fn run(a: ReportArgs) -> Result<(), super::CliError> {
         a.out.display(),
         runs.len(),
         tracks.len(),
-        a.seeds,
+        a.set.seeds,
         a.laps
     );
     // Per preset, track and method, in the order of the tables.
