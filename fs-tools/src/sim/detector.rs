@@ -1,7 +1,7 @@
 //! One scan of the simulated cone detector: which objects it sees, with
 //! what noise, colour and tracker id.
 
-use super::effects::{Noise, occluded};
+use super::effects::{Noise, behind};
 use super::tracker::Tracker;
 use super::{SensorModel, Source};
 use crate::track::Track;
@@ -56,11 +56,7 @@ pub(super) fn detect(
             .collect();
         in_view
             .iter()
-            .map(|(_, p, _)| {
-                let mut with = standing.clone();
-                with.push(*p);
-                *occluded(&with).last().unwrap_or(&false)
-            })
+            .map(|(_, p, _)| behind(p, &standing))
             .collect()
     } else {
         vec![false; in_view.len()]

@@ -53,22 +53,16 @@ impl Distribution<f64> for Noise {
 /// A cone's base radius (m): what hides the objects behind it.
 const CONE_RADIUS: f64 = 0.114;
 
-/// For each object (vehicle frame), whether a nearer one stands in front of
-/// its centre: its bearing within the nearer cone's angular half-width.
-pub(super) fn occluded(objects: &[Vector2<f64>]) -> Vec<bool> {
-    objects
-        .iter()
-        .map(|p| {
-            let (r, b) = (p.norm(), p.y.atan2(p.x));
-            objects.iter().any(|q| {
-                let rq = q.norm();
-                let db = (q.y.atan2(q.x) - b + std::f64::consts::PI)
-                    .rem_euclid(std::f64::consts::TAU)
-                    - std::f64::consts::PI;
-                rq < r && db.abs() < (CONE_RADIUS / rq.max(CONE_RADIUS)).atan()
-            })
-        })
-        .collect()
+/// Whether one of `others` (vehicle frame) stands nearer than `p` and in
+/// front of its centre: `p`'s bearing within that cone's angular half-width.
+pub(super) fn behind(p: &Vector2<f64>, others: &[Vector2<f64>]) -> bool {
+    let (r, b) = (p.norm(), p.y.atan2(p.x));
+    others.iter().any(|q| {
+        let rq = q.norm();
+        let db = (q.y.atan2(q.x) - b + std::f64::consts::PI).rem_euclid(std::f64::consts::TAU)
+            - std::f64::consts::PI;
+        rq < r && db.abs() < (CONE_RADIUS / rq.max(CONE_RADIUS)).atan()
+    })
 }
 
 /// How fast the simulated car drives.
@@ -165,7 +159,8 @@ mod tests {
             Vector2::new(10.0, 0.05),
             Vector2::new(10.0, 1.0),
         ];
-        assert_eq!(occluded(&objects), [false, true, false]);
+        let hidden: Vec<bool> = objects.iter().map(|p| behind(p, &objects)).collect();
+        assert_eq!(hidden, [false, true, false]);
     }
 
     #[test]
