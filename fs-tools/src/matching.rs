@@ -45,7 +45,7 @@ pub fn one_to_one(
 /// The assignment of rows to columns (`links[row]`: (column, benefit > 0))
 /// with the largest summed benefit, each column taken at most once; a row
 /// may stay unassigned. Exact (the Hungarian method, per group of rows and
-/// columns linked to each other) up to [`MAX_OPTIMAL`] rows per group.
+/// columns linked to each other) up to 300 rows per group.
 pub fn assign(links: &[Vec<(usize, i64)>], columns: usize) -> Vec<Option<usize>> {
     let mut chosen = vec![None; links.len()];
     for (rows, cols) in components(links, columns) {
