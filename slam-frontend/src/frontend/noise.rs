@@ -1,6 +1,6 @@
-//! The detector's noise, learned while driving from the innovations of the
-//! matched detections: when the assumed σ is wrong, the normalised
-//! innovations χ² of true matches are not χ² with 2 degrees of freedom, and
+//! The detector's noise, learned while driving from what is left of the
+//! matched detections after each scan's pose fit: when the assumed σ is
+//! wrong, their normalised χ² are not χ² with 2 degrees of freedom, and
 //! their 90th percentile says by how much. A percentile, not the mean, so
 //! that the odd wrong match does not steer it; the 90th, not the median, so
 //! that heavy-tailed noise widens the gates to its tails rather than
@@ -40,8 +40,8 @@ pub struct DetectorNoise {
     pub variance_scale: f64,
 }
 
-/// The normalised innovations χ² of the latest matches and the variance
-/// scale learned so far.
+/// The normalised χ² of the latest matches and the variance scale learned
+/// so far.
 pub(super) struct NoiseLearner {
     nis: Vec<f64>,
     scratch: Vec<f64>,
