@@ -40,12 +40,6 @@ impl Variable<4> for PoseBias {
     }
 }
 
-/// Bias drift allowed between keyframes: a random walk of this σ per √s
-/// (rad/s/√s), about a MEMS gyro's bias instability. On the 12 shared
-/// tracks (seeds 0–4) 1e-5 and below gave map RMSE 0.156 m, 1e-4 0.168 m
-/// and 1e-3 0.225 m.
-const BIAS_WALK: f64 = 1e-5;
-
 /// Odometry between two keyframes with the bias taken out: the measured
 /// heading change less (bias − the bias the integration assumed)·dt, and
 /// the bias's random walk.
@@ -59,8 +53,8 @@ pub(super) struct OdometryBias {
 impl OdometryBias {
     /// The edge of `o` and its information: the smoother's for position,
     /// the yaw rate's white noise for heading (the position–heading
-    /// correlation kept), and the bias walk.
-    pub(super) fn new(o: &OdometryEdge) -> (Self, Matrix4<f64>) {
+    /// correlation kept), and the bias's random walk of `walk` rad/s/√s.
+    pub(super) fn new(o: &OdometryEdge, walk: f64) -> (Self, Matrix4<f64>) {
         let mut cov: Matrix3<f64> = o.information.try_inverse().unwrap_or_else(Matrix3::zeros);
         let heading = o.heading_variance.max(1e-12);
         let scale = (heading / cov[(2, 2)].max(1e-12)).min(1.0).sqrt();
@@ -73,7 +67,7 @@ impl OdometryBias {
         let mut info = Matrix4::zeros();
         info.fixed_view_mut::<3, 3>(0, 0)
             .copy_from(&(0.5 * (info3 + info3.transpose())));
-        info[(3, 3)] = 1.0 / (BIAS_WALK * BIAS_WALK * o.dt.max(1e-3));
+        info[(3, 3)] = 1.0 / (walk * walk * o.dt.max(1e-3)).max(1e-30);
         (Self::edge(o), info)
     }
 
@@ -237,7 +231,7 @@ mod tests {
             yaw_rate_bias: 0.001,
             heading_variance: 1e-8,
         };
-        let (edge, info) = OdometryBias::new(&o);
+        let (edge, info) = OdometryBias::new(&o, 1e-5);
         let a = PoseBias {
             pose: SE2::new(1.0, 2.0, 0.3),
             bias: 0.003,
@@ -287,10 +281,10 @@ mod tests {
             };
             let start = pose;
             for e in &edges {
-                let (edge, _) = OdometryBias::new(e);
+                let (edge, _) = OdometryBias::new(e, 1e-5);
                 pose.pose = pose.pose.compose(&edge.corrected(&pose));
             }
-            let (edge, info) = OdometryBias::new(&chain);
+            let (edge, info) = OdometryBias::new(&chain, 1e-5);
             let error = edge.error(&start, &pose);
             // The turn exactly. The position to within the bias's turn times
             // the distance: single edges correct only the turn too.
@@ -302,7 +296,7 @@ mod tests {
             assert!(error.fixed_rows::<2>(0).norm() < turn * 2.8, "{error}");
             // Four edges' uncertainty: weaker than one edge, still positive.
             let cov = info.try_inverse().expect("positive definite");
-            let one = OdometryBias::new(&edges[0])
+            let one = OdometryBias::new(&edges[0], 1e-5)
                 .1
                 .try_inverse()
                 .expect("positive definite");

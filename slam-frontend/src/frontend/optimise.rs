@@ -39,7 +39,10 @@ impl GraphSlam {
             graph.add_unary_edge(0, StartPrior(start), StartPrior::information())?;
             for pair in kept.windows(2) {
                 let (a, b) = (pair[0], pair[1]);
-                let (edge, info) = OdometryBias::new(&OdometryEdge::chain(&self.odometry[a..b]));
+                let (edge, info) = OdometryBias::new(
+                    &OdometryEdge::chain(&self.odometry[a..b]),
+                    self.config.yaw_rate_bias_walk,
+                );
                 graph.add_edge(a as i64, b as i64, edge, info)?;
             }
             // A cone is seen from dozens of poses (hundreds on tight tracks);

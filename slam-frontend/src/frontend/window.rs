@@ -32,9 +32,9 @@ use nalgebra::{DMatrix, DVector, Matrix2, Matrix3, Matrix4, SMatrix, Vector2, Ve
 /// Poses optimised per scan (2.5 s at 10 Hz: about how long a cone stays in view).
 pub(super) const WINDOW: usize = 25;
 
-/// Variance the bias prior gains per scan ((rad/s)²), so that it can
-/// follow a slow drift.
-const BIAS_WALK_VAR: f64 = 1e-10;
+/// Seconds of the bias's random walk the smoother's bias prior gains per
+/// scan: looser than a scan's 0.1 s, so that it follows a slow drift.
+const BIAS_WALK_SECONDS: f64 = 1.0;
 
 /// Huber threshold on a sighting's χ² (2 dof, 99%).
 const HUBER_CHI2: f64 = 9.21;
@@ -287,7 +287,8 @@ impl GraphSlam {
         // the share pulls the prior mean toward it by share / info.
         let gain = (posterior_info / (WINDOW as f64 * info)).min(1.0);
         w.bias_mean += gain * (bias - w.bias_mean);
-        w.bias_info = 1.0 / (1.0 / info + BIAS_WALK_VAR);
+        let walk = self.config.yaw_rate_bias_walk;
+        w.bias_info = 1.0 / (1.0 / info + walk * walk * BIAS_WALK_SECONDS);
     }
 
     fn apply(&mut self, w: &Window, anchor: usize, m: usize, step: &Step) {
