@@ -4,19 +4,27 @@
 use crate::eval::{Report, association_accuracy, association_labels, evaluate, latency_ms};
 use crate::sim::Simulation;
 use cairn_slam::estimator::{Estimator, EstimatorBuilder};
+use cairn_slam::files::Association;
 use cairn_slam::frontend::{FrontEndConfig, GraphSlam, OptimiseError};
 use cairn_slam::log::{Log, Record};
 use cairn_slam::points::PointCloudConfig;
 
+/// A log run end to end ([`run_log`]).
+pub struct LogRun {
+    /// The estimator, finished.
+    pub slam: Box<dyn Estimator>,
+    /// The final optimisation's outcome: when it failed, the estimate is the
+    /// one before it.
+    pub finished: Result<(), OptimiseError>,
+    /// The associations as they stood before the end-of-run pass: what the
+    /// car knew while driving (landmark ids of the map as it stood then).
+    pub real_time: Vec<Association>,
+}
+
 /// Runs the estimator `builder` describes over a whole log and finishes it.
 /// A log of point clouds goes through the clustering front end first (with
-/// default settings unless the builder has its own). Returns the estimator
-/// and the final optimisation's outcome: when it failed, the estimate is
-/// the one before it.
-pub fn run_log(
-    builder: &EstimatorBuilder,
-    log: &Log,
-) -> (Box<dyn Estimator>, Result<(), OptimiseError>) {
+/// default settings unless the builder has its own).
+pub fn run_log(builder: &EstimatorBuilder, log: &Log) -> LogRun {
     let mut builder = builder.clone();
     let points = log
         .records
@@ -29,8 +37,13 @@ pub fn run_log(
     for record in &log.records {
         slam.process(record);
     }
+    let real_time = slam.associations();
     let finished = slam.finish();
-    (slam, finished)
+    LogRun {
+        slam,
+        finished,
+        real_time,
+    }
 }
 
 /// Feeds a simulated log to a new graph front end and scores the result.

@@ -4,7 +4,7 @@
 use crate::arrays::rows;
 use cairn_fs_tools::configs::assumed_config;
 use cairn_fs_tools::course::Course;
-use cairn_fs_tools::run::run_log;
+use cairn_fs_tools::run::{LogRun, run_log};
 use cairn_fs_tools::sim::{Preset, SimConfig, simulate};
 use cairn_fs_tools::track::Track;
 use cairn_fs_tools::trackgen::{TrackRules, random_track};
@@ -80,7 +80,7 @@ pub fn fs_slam<'py>(
         let mut builder = EstimatorBuilder::new(kind, settings);
         builder.particles = particles;
         builder.seed = seed;
-        let (slam, finished) = run_log(&builder, &log);
+        let LogRun { slam, finished, .. } = run_log(&builder, &log);
         let mut warnings = slam.warnings().to_vec();
         if let Err(e) = finished {
             warnings.push(format!(

@@ -7,7 +7,7 @@ use super::{CliError, bad_input, write_output};
 use cairn::fs_tools::Track;
 use cairn::fs_tools::course::{Course, start_on_line};
 use cairn::fs_tools::eval::latency_ms;
-use cairn::fs_tools::run::run_log;
+use cairn::fs_tools::run::{LogRun, run_log};
 use cairn::fs_tools::sim::{Preset, SimConfig, SimConfigError, point_clouds, simulate};
 use cairn::fs_tools::trackgen::{TrackRules, random_track};
 use cairn::slam::estimator::{EstimatorBuilder, EstimatorKind};
@@ -137,6 +137,11 @@ pub struct SlamArgs {
     /// learned. Off unless given here or in the config.
     #[arg(long)]
     learn_noise: bool,
+    /// Write the associations as they stood before the end-of-run pass (the
+    /// real-time ones; landmark ids of the map as it stood then), for
+    /// `fs-eval --assoc-real-time`.
+    #[arg(long)]
+    assoc_real_time_out: Option<PathBuf>,
     /// Skip and count malformed log lines instead of stopping at the first.
     #[arg(long)]
     skip_bad: bool,
@@ -298,7 +303,10 @@ pub fn run_slam(a: SlamArgs) -> Result<(), super::CliError> {
     let name = a.log.display().to_string();
     // The options first: a wrong one fails before the log is read.
     a.out.check()?;
-    if let Some(path) = &a.timing_out {
+    for path in [&a.timing_out, &a.assoc_real_time_out]
+        .into_iter()
+        .flatten()
+    {
         super::check_writable(path)?;
     }
     let kind = EstimatorKind::by_name(&a.estimator)
@@ -345,7 +353,11 @@ pub fn run_slam(a: SlamArgs) -> Result<(), super::CliError> {
     builder.seed = a.seed;
     builder.map = map.as_deref();
     builder.known = known.as_deref();
-    let (slam, finished) = run_log(&builder, &log);
+    let LogRun {
+        slam,
+        finished,
+        real_time,
+    } = run_log(&builder, &log);
     if let Err(e) = finished {
         eprintln!("warning: the final optimisation failed ({e}); writing the estimate as it was");
     }
@@ -394,10 +406,12 @@ pub fn run_slam(a: SlamArgs) -> Result<(), super::CliError> {
         }),
     })
     .to_string();
+    let real_time = files::associations_to_csv(&real_time);
     for (path, text) in [
         (&a.out.map_out, &map),
         (&a.out.traj_out, &traj),
         (&a.out.assoc_out, &assoc),
+        (&a.assoc_real_time_out, &real_time),
         (&a.timing_out, &timing),
     ] {
         if let Some(path) = path {

@@ -2,7 +2,9 @@
 
 use super::fs::{TRUTH_ASSOC, TRUTH_MAP, TRUTH_TRAJ, read_text};
 use super::{bad_input, file_name};
-use cairn::fs_tools::eval::{Report, evaluate, latency_ms, position_errors};
+use cairn::fs_tools::eval::{
+    Report, association_accuracy, association_labels, evaluate, latency_ms, position_errors,
+};
 use cairn::plot::{MapPlot, draw};
 use cairn::slam::Cone;
 use cairn::slam::files::{self, StampedPose};
@@ -28,6 +30,10 @@ pub struct EvalArgs {
     /// is not scored.
     #[arg(long)]
     assoc: Option<PathBuf>,
+    /// The associations before the end-of-run pass (`fs-slam
+    /// --assoc-real-time-out`): their accuracy is the real-time one.
+    #[arg(long)]
+    assoc_real_time: Option<PathBuf>,
     /// Timings written by `fs-slam --timing-out`.
     #[arg(long)]
     timing: Option<PathBuf>,
@@ -78,6 +84,15 @@ pub fn run_eval(a: EvalArgs) -> Result<(), super::CliError> {
         &truth_assoc,
         &assoc,
     );
+    if let Some(path) = &a.assoc_real_time {
+        let truth = files::associations_from_csv(&read_text(&a.truth.join(TRUTH_ASSOC))?)
+            .map_err(bad_input(TRUTH_ASSOC))?;
+        let real_time =
+            files::associations_from_csv(&read_text(path)?).map_err(bad_input(path.display()))?;
+        let labels = association_labels(&truth, &real_time);
+        report.association_accuracy_real_time =
+            Some(association_accuracy(&truth, &real_time, &labels).0);
+    }
     if a.assoc.is_none() {
         // JSON writes it as null, the table as not scored.
         report.association_accuracy = f64::NAN;
