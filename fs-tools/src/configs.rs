@@ -4,8 +4,8 @@
 //! file that describes it, as a team would read its own car's config.
 
 use cairn_slam::estimator::EstimatorKind;
-use cairn_slam::frontend::FrontEndConfig;
 use cairn_slam::frontend::association::AssociationMethod;
+use cairn_slam::frontend::{ConfigError, FrontEndConfig};
 
 /// The shipped configuration files of the simulator presets, by preset name.
 pub const PRESET_CONFIGS: [(&str, &str); 2] = [
@@ -13,19 +13,33 @@ pub const PRESET_CONFIGS: [(&str, &str); 2] = [
     ("hard", include_str!("../../configs/hard.toml")),
 ];
 
+/// Why a preset's assumed settings are not there.
+#[derive(Debug, thiserror::Error)]
+pub enum PresetConfigError {
+    /// No shipped file for this preset.
+    #[error("no shipped config for the preset {0:?} (standard and hard have one)")]
+    Unknown(String),
+    /// The shipped file does not read (a broken build).
+    #[error("configs/{0}.toml: {1}")]
+    Config(String, ConfigError),
+}
+
 /// The settings `configs/<preset>.toml` gives, with `association` and the
-/// χ² gate for `kind` ([`FrontEndConfig::gate_for`]); `None` for a preset
-/// without a shipped file.
+/// χ² gate for `kind` ([`FrontEndConfig::gate_for`]).
 pub fn assumed_config(
     preset: &str,
     association: AssociationMethod,
     kind: EstimatorKind,
-) -> Option<FrontEndConfig> {
-    let (_, text) = PRESET_CONFIGS.iter().find(|(name, _)| *name == preset)?;
-    let mut config = FrontEndConfig::from_toml(text).ok()?;
+) -> Result<FrontEndConfig, PresetConfigError> {
+    let (_, text) = PRESET_CONFIGS
+        .iter()
+        .find(|(name, _)| *name == preset)
+        .ok_or_else(|| PresetConfigError::Unknown(preset.to_string()))?;
+    let mut config = FrontEndConfig::from_toml(text)
+        .map_err(|e| PresetConfigError::Config(preset.to_string(), e))?;
     config.association = association;
     config.gate = FrontEndConfig::gate_for(kind, config.false_positives);
-    Some(config)
+    Ok(config)
 }
 
 #[cfg(test)]
@@ -42,6 +56,9 @@ mod tests {
                 .expect("the shipped file reads");
             assert_eq!(ekf.gate, 9.21, "{name}");
         }
-        assert!(assumed_config("nope", AssociationMethod::Jcbb, EstimatorKind::Graph).is_none());
+        assert!(matches!(
+            assumed_config("nope", AssociationMethod::Jcbb, EstimatorKind::Graph),
+            Err(PresetConfigError::Unknown(_))
+        ));
     }
 }

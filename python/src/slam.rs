@@ -68,9 +68,8 @@ pub fn fs_slam<'py>(
             FrontEndConfig::from_toml(&text)
                 .map_err(|e| PyValueError::new_err(format!("{}: {e}", path.display())))?
         }
-        None => assumed_config("standard", method, kind).ok_or_else(|| {
-            PyValueError::new_err("the shipped configs/standard.toml does not read")
-        })?,
+        None => assumed_config("standard", method, kind)
+            .map_err(|e| PyValueError::new_err(e.to_string()))?,
     };
     settings.association = method;
     let bytes = read(&log_path)?;

@@ -13,6 +13,7 @@ use cairn::fs_tools::sim::{Preset, SimConfig, simulate};
 use cairn::fs_tools::track::Track;
 use cairn::slam::Color;
 use cairn::slam::estimator::EstimatorKind;
+use cairn::slam::frontend::FrontEndConfig;
 use cairn::slam::frontend::association::AssociationMethod;
 use clap::Args;
 use rayon::prelude::*;
@@ -121,8 +122,14 @@ pub fn run(a: MismatchArgs) -> Result<(), super::CliError> {
     for case in CASES {
         for t in 0..tracks.len() {
             for method in AssociationMethod::ALL {
+                let mut told = assumed_config("standard", method, EstimatorKind::Graph)
+                    .map_err(|e| e.to_string())?;
+                told.learn_detector_noise = case == Case::NoiseLearned;
+                if case == Case::BiasWalkTold {
+                    told.yaw_rate_bias_walk = 5e-4;
+                }
                 for seed in a.first_seed..a.first_seed + a.set.seeds {
-                    jobs.push((case, t, method, seed));
+                    jobs.push((case, t, method, seed, told.clone()));
                 }
             }
         }
@@ -131,8 +138,8 @@ pub fn run(a: MismatchArgs) -> Result<(), super::CliError> {
     let progress = Progress::new(jobs.len(), "runs");
     let runs: Vec<Run> = jobs
         .par_iter()
-        .filter_map(|&(case, t, method, seed)| {
-            let result = simulate_and_score(&tracks, case, t, method, seed);
+        .filter_map(|(case, t, method, seed, told)| {
+            let result = simulate_and_score(&tracks, (*case, *t, *method, *seed), told.clone());
             progress.inc();
             result
         })
@@ -144,12 +151,12 @@ pub fn run(a: MismatchArgs) -> Result<(), super::CliError> {
     Ok(())
 }
 
+/// One run of `case` on track `t`, mapped by the graph `told` what to assume;
+/// `None` when the case does not apply to the track.
 fn simulate_and_score(
     tracks: &Tracks,
-    case: Case,
-    t: usize,
-    method: AssociationMethod,
-    seed: u64,
+    (case, t, method, seed): (Case, usize, AssociationMethod, u64),
+    told: FrontEndConfig,
 ) -> Option<Run> {
     let (track, course, preset) = case.log_of(&tracks[t].0, &tracks[t].1)?;
     let sim = simulate(
@@ -161,12 +168,7 @@ fn simulate_and_score(
             ..SimConfig::default()
         },
     );
-    let mut config = assumed_config("standard", method, EstimatorKind::Graph)?;
-    config.learn_detector_noise = case == Case::NoiseLearned;
-    if case == Case::BiasWalkTold {
-        config.yaw_rate_bias_walk = 5e-4;
-    }
-    let (slam, report) = run_and_score(&sim, config);
+    let (slam, report) = run_and_score(&sim, told);
     Some(Run {
         case,
         track: t,

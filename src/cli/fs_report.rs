@@ -81,8 +81,10 @@ pub fn run(a: ReportArgs) -> Result<(), super::CliError> {
     for t in 0..tracks.len() {
         for p in &presets {
             for m in AssociationMethod::ALL {
+                let config =
+                    assumed_config(p.name, m, EstimatorKind::Graph).map_err(|e| e.to_string())?;
                 for seed in a.first_seed..a.first_seed + a.set.seeds {
-                    jobs.push((t, p.clone(), m, seed));
+                    jobs.push((t, p.clone(), m, seed, config.clone()));
                 }
             }
         }
@@ -91,7 +93,7 @@ pub fn run(a: ReportArgs) -> Result<(), super::CliError> {
     let progress = Progress::new(jobs.len(), "runs");
     let runs: Vec<Run> = jobs
         .par_iter()
-        .map(|(t, preset, method, seed)| {
+        .map(|(t, preset, method, seed, assumed)| {
             let (track, course) = &tracks[*t];
             let config = SimConfig {
                 preset: preset.clone(),
@@ -100,11 +102,7 @@ pub fn run(a: ReportArgs) -> Result<(), super::CliError> {
                 ..SimConfig::default()
             };
             let sim = simulate(track, course, &config);
-            let (slam, report) = run_and_score(
-                &sim,
-                assumed_config(preset.name, *method, EstimatorKind::Graph)
-                    .expect("the preset has a shipped config"),
-            );
+            let (slam, report) = run_and_score(&sim, assumed.clone());
             for warning in &report.warnings {
                 let name = &tracks[*t].0.name;
                 progress.note(&format!("warning: {name} seed {seed}: {warning}"));
@@ -229,15 +227,13 @@ pub fn run(a: ReportArgs) -> Result<(), super::CliError> {
     for (track, course) in &tracks {
         let config = SimConfig::default();
         let sim = simulate(track, course, &config);
-        let (slam, _) = run_and_score(
-            &sim,
-            assumed_config(
-                config.preset.name,
-                AssociationMethod::Tracking,
-                EstimatorKind::Graph,
-            )
-            .expect("the preset has a shipped config"),
-        );
+        let assumed = assumed_config(
+            config.preset.name,
+            AssociationMethod::Tracking,
+            EstimatorKind::Graph,
+        )
+        .map_err(|e| e.to_string())?;
+        let (slam, _) = run_and_score(&sim, assumed);
         let file = format!("{}.svg", track.name);
         plot_run(
             &plots_dir.join(&file),

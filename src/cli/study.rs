@@ -95,8 +95,9 @@ pub fn run(a: StudyArgs) -> Result<(), super::CliError> {
         for p in &presets {
             for kind in EstimatorKind::ALL {
                 for m in AssociationMethod::ALL {
+                    let config = assumed_config(p.name, m, kind).map_err(|e| e.to_string())?;
                     for seed in 0..a.seeds {
-                        jobs.push((t, p.clone(), kind, m, seed));
+                        jobs.push((t, p.clone(), kind, m, seed, config.clone()));
                     }
                 }
             }
@@ -106,13 +107,9 @@ pub fn run(a: StudyArgs) -> Result<(), super::CliError> {
     let progress = Progress::new(jobs.len(), "runs");
     let runs: Vec<Run> = jobs
         .par_iter()
-        .map(|(t, preset, kind, method, seed)| {
+        .map(|(t, preset, kind, method, seed, assumed)| {
             let sim = simulate_on(&tracks[*t], preset, *seed);
-            let mut builder = EstimatorBuilder::new(
-                *kind,
-                assumed_config(preset.name, *method, *kind)
-                    .expect("the preset has a shipped config"),
-            );
+            let mut builder = EstimatorBuilder::new(*kind, assumed.clone());
             builder.particles = a.particles;
             builder.seed = *seed;
             let (slam, report) = run_estimator(&sim, &builder);

@@ -38,8 +38,7 @@ pub(super) fn rmse_by_distance(
     }
     let mut builder = EstimatorBuilder::new(
         kind,
-        assumed_config("standard", AssociationMethod::Tracking, kind)
-            .expect("the preset has a shipped config"),
+        assumed_config("standard", AssociationMethod::Tracking, kind).map_err(|e| e.to_string())?,
     );
     builder.particles = particles;
     let mut slam = builder.build();
@@ -92,14 +91,24 @@ pub(super) fn particle_study(
             }
         }
     }
+    let assumed = |kind| {
+        assumed_config("standard", AssociationMethod::Tracking, kind).map_err(|e| e.to_string())
+    };
+    let (fast1, fast2) = (
+        assumed(EstimatorKind::FastSlam1)?,
+        assumed(EstimatorKind::FastSlam2)?,
+    );
     let progress = Progress::new(jobs.len(), "FastSLAM runs");
     let results: Vec<(EstimatorKind, usize, Report)> = jobs
         .par_iter()
         .map(|&(kind, n, seed)| {
             let mut builder = EstimatorBuilder::new(
                 kind,
-                assumed_config("standard", AssociationMethod::Tracking, kind)
-                    .expect("the preset has a shipped config"),
+                if kind == EstimatorKind::FastSlam1 {
+                    fast1.clone()
+                } else {
+                    fast2.clone()
+                },
             );
             builder.particles = n;
             builder.seed = seed;
@@ -185,14 +194,14 @@ pub(super) fn noise_study(
         .iter()
         .flat_map(|&k| (0..seeds).map(move |s| (k, s)))
         .collect();
+    let assumed = assumed_config(preset.name, AssociationMethod::Tracking, EstimatorKind::Ekf)
+        .map_err(|e| e.to_string())?;
     let progress = Progress::new(jobs.len(), "EKF runs");
     let results: Vec<(f64, Report, Report)> = jobs
         .par_iter()
         .map(|&(k, seed)| {
             let sim = simulate_on(track, preset, seed);
-            let mut config: FrontEndConfig =
-                assumed_config(preset.name, AssociationMethod::Tracking, EstimatorKind::Ekf)
-                    .expect("the preset has a shipped config");
+            let mut config: FrontEndConfig = assumed.clone();
             let f = k.sqrt();
             config.range_sigma *= f;
             config.range_sigma_relative *= f;

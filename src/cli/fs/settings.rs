@@ -29,7 +29,7 @@ pub(super) fn slam_config(a: &SlamArgs, kind: EstimatorKind) -> Result<FrontEndC
         None => {
             let preset = a.noise.as_deref().unwrap_or("standard");
             let mut config = assumed_config(preset, AssociationMethod::Tracking, kind)
-                .ok_or_else(|| CliError::usage("--noise must be standard or hard"))?;
+                .map_err(|e| CliError::usage(format!("--noise: {e}")))?;
             describe_detector(&mut config, a)?;
             // The gate follows the false positives `--false-positives` may have changed.
             config.gate = FrontEndConfig::gate_for(kind, config.false_positives);
