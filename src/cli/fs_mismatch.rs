@@ -188,7 +188,8 @@ fn markdown(a: &MismatchArgs, tracks: &Tracks, runs: &[Run]) -> String {
          ({} runs: {} tracks × {} cases × 4 association methods × {} seeds, 2 laps at 5 m/s; \
          cases that do not apply to a track, such as a start line on a track without big \
          orange cones, are left out). The graph front end is told `configs/standard.toml` \
-         for every log; each log is `standard` but for the case. Scored as in \
+         for every log, and what a case's label adds (`--learn-noise`, a config value); \
+         each log is `standard` but for the case. Scored as in \
          `docs/fs-slam.md`: association with each true cone standing for one landmark, the \
          map matched one-to-one. `mean` is over runs; `worst` the worst run.\n",
         a.set.seeds,

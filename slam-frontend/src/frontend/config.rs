@@ -53,9 +53,10 @@ pub struct FrontEndConfig {
     /// filters use the σ as given): after each scan's pose fit, scale the σ
     /// above so that the matched detections' residuals are as consistent as
     /// assumed (a third to five times the assumed σ). A detector twice as
-    /// noisy as assumed then keeps 99.9% of its matches instead of 92%.
+    /// noisy as assumed then has 99.65% of its detections matched right
+    /// instead of 91.8% (docs/fs-mismatch.md).
     /// Off by default: what it learns includes the landmarks' own
-    /// over-confidence (σ ×1.36 on a log that matches `standard` exactly),
+    /// over-confidence (σ ×1.36 on one log that matches `standard` exactly),
     /// and on the `hard` preset with SCNN or JCBB it widened the gates enough
     /// to lose eufs_comp_2021's map (69% association).
     pub learn_detector_noise: bool,
