@@ -342,9 +342,7 @@ mod tests {
             / line.len() as f64;
         assert!((start.t - centre).norm() < 0.5, "{start:?} vs {centre}");
         // Facing along the course, as the file's start does.
-        let d = (start.theta - track.start.theta + std::f64::consts::PI)
-            .rem_euclid(std::f64::consts::TAU)
-            - std::f64::consts::PI;
+        let d = cairn_core::se2::normalize_angle(start.theta - track.start.theta);
         assert!(d.abs() < 0.3, "{start:?} vs {:?}", track.start);
         track.cones.retain(|c| c.color != Color::BigOrange);
         assert!(start_on_line(&track, &course).is_none());

@@ -75,6 +75,24 @@ pub struct Report {
     pub warnings: Vec<String>,
 }
 
+impl Report {
+    /// Counts `lost` sightings that no detection stands for (a point-cloud
+    /// run's clustering errors) as wrongly associated detections.
+    pub fn count_lost_sightings(&mut self, lost: usize) {
+        let all = self.detections + lost;
+        if lost == 0 || all == 0 {
+            return;
+        }
+        let kept = self.detections as f64 / all as f64;
+        self.association_accuracy *= kept;
+        self.association_accuracy_majority *= kept;
+        if let Some(real_time) = &mut self.association_accuracy_real_time {
+            *real_time *= kept;
+        }
+        self.detections = all;
+    }
+}
+
 /// Scores a run.
 pub fn evaluate(
     truth_map: &[Cone],
@@ -139,8 +157,7 @@ pub fn evaluate(
         .zip(&traj_truth)
         .map(|(a, b)| (a - b).norm()));
     report.ate_aligned = aligned_rms(&traj_est, &traj_truth);
-    let labels = association_labels(truth_associations, associations);
-    let (accuracy, n) = association_accuracy(truth_associations, associations, &labels);
+    let (accuracy, n) = one_to_one_accuracy(truth_associations, associations);
     report.association_accuracy = accuracy;
     report.detections = n;
     let majority = majority_labels(truth_associations, associations);
@@ -174,6 +191,12 @@ fn covariance_scores(matched: &[(&Cone, Vector2<f64>)]) -> Option<(f64, f64)> {
 pub fn map_labels(truth_map: &[Cone], map: &[Cone]) -> Vec<Option<usize>> {
     let positions = |cones: &[Cone]| cones.iter().map(|c| c.position).collect::<Vec<_>>();
     crate::matching::one_to_one(&positions(map), &positions(truth_map), MATCH_RADIUS)
+}
+
+/// [`association_accuracy`] with each true cone standing for one landmark
+/// ([`association_labels`]): (accuracy, detections scored).
+pub fn one_to_one_accuracy(truth: &[Association], estimate: &[Association]) -> (f64, usize) {
+    association_accuracy(truth, estimate, &association_labels(truth, estimate))
 }
 
 /// How many detections each landmark got from each true cone (`None`:

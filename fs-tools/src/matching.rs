@@ -3,10 +3,11 @@
 //! stands for at most one landmark, so a duplicate is a phantom, not a
 //! second good match.
 
+use cairn_core::DisjointSets;
 use cairn_slam::frontend::grid::Grid;
 use nalgebra::Vector2;
 use pathfinding::prelude::{Matrix, kuhn_munkres};
-use std::collections::{BTreeMap, HashSet};
+use std::collections::HashSet;
 
 /// Groups larger than this (rows) are assigned largest benefit first
 /// instead of by the Hungarian method, which is cubic. Cones within one
@@ -63,39 +64,23 @@ pub fn assign(links: &[Vec<(usize, i64)>], columns: usize) -> Vec<Option<usize>>
 
 /// The groups of rows and columns linked to each other, each with a link.
 fn components(links: &[Vec<(usize, i64)>], columns: usize) -> Vec<(Vec<usize>, Vec<usize>)> {
-    // Union-find over rows 0..n and columns n..n+columns.
+    // Rows are 0..n, columns n..n + columns.
     let n = links.len();
-    let mut parent: Vec<usize> = (0..n + columns).collect();
-    fn root(parent: &mut [usize], mut i: usize) -> usize {
-        while parent[i] != i {
-            parent[i] = parent[parent[i]];
-            i = parent[i];
-        }
-        i
-    }
+    let mut sets = DisjointSets::new(n + columns);
     for (row, near) in links.iter().enumerate() {
         for &(column, _) in near {
-            let (a, b) = (root(&mut parent, row), root(&mut parent, n + column));
-            parent[a] = b;
+            sets.union(row, n + column);
         }
     }
-    let mut groups: BTreeMap<usize, (Vec<usize>, Vec<usize>)> = BTreeMap::new();
-    for (row, near) in links.iter().enumerate() {
-        if !near.is_empty() {
-            groups
-                .entry(root(&mut parent, row))
-                .or_default()
-                .0
-                .push(row);
-        }
-    }
-    for column in 0..columns {
-        let r = root(&mut parent, n + column);
-        if let Some(group) = groups.get_mut(&r) {
-            group.1.push(column);
-        }
-    }
-    groups.into_values().collect()
+    sets.groups()
+        .into_iter()
+        .filter(|group| group.len() > 1)
+        .map(|group| {
+            let split = group.partition_point(|&i| i < n);
+            let columns = group[split..].iter().map(|&i| i - n).collect();
+            (group[..split].to_vec(), columns)
+        })
+        .collect()
 }
 
 /// The Hungarian method on one group; one "unassigned" column per row

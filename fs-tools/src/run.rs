@@ -1,7 +1,7 @@
 //! A log or a simulated run end to end, as the command line, the report,
 //! the study and the tests use it.
 
-use crate::eval::{Report, association_accuracy, association_labels, evaluate, latency_ms};
+use crate::eval::{Report, evaluate, latency_ms, one_to_one_accuracy};
 use crate::sim::Simulation;
 use cairn_slam::estimator::{Estimator, EstimatorBuilder};
 use cairn_slam::files::Association;
@@ -66,32 +66,9 @@ fn feed_and_score(sim: &Simulation, slam: &mut dyn Estimator) -> Report {
     for record in &sim.log {
         slam.process(record);
     }
-    let real_time = real_time_accuracy(sim, slam);
+    let real_time = one_to_one_accuracy(&sim.truth_associations, &slam.associations()).0;
     let finished = slam.finish();
-    let mut report = with_warnings(score(sim, slam), slam, finished);
-    report.association_accuracy_real_time = Some(real_time);
-    report
-}
-
-/// `accuracy` of `scored` detections with the simulation's lost sightings
-/// counted as wrong.
-fn with_lost(accuracy: f64, scored: usize, sim: &Simulation) -> f64 {
-    let all = scored + sim.lost_sightings;
-    if all == 0 {
-        accuracy
-    } else {
-        accuracy * scored as f64 / all as f64
-    }
-}
-
-/// The association accuracy of the estimate as it stands (each true cone
-/// standing for at most one landmark): before [`Estimator::finish`], what
-/// the car knew while driving.
-pub fn real_time_accuracy(sim: &Simulation, slam: &dyn Estimator) -> f64 {
-    let (truth, estimate) = (&sim.truth_associations, &slam.associations());
-    let (accuracy, scored) =
-        association_accuracy(truth, estimate, &association_labels(truth, estimate));
-    with_lost(accuracy, scored, sim)
+    with_warnings(scored(sim, slam, Some(real_time)), slam, finished)
 }
 
 /// The report with the run's failed optimisations, the final one's included.
@@ -112,6 +89,11 @@ fn with_warnings(
 /// Scores an estimator's current output against the simulation's truth
 /// (lost sightings counted as wrong associations).
 pub fn score(sim: &Simulation, slam: &dyn Estimator) -> Report {
+    scored(sim, slam, None)
+}
+
+/// [`score`], with the accuracy of the associations made in real time.
+fn scored(sim: &Simulation, slam: &dyn Estimator, real_time: Option<f64>) -> Report {
     let mut report = evaluate(
         &sim.truth_map,
         &slam.map(),
@@ -120,11 +102,8 @@ pub fn score(sim: &Simulation, slam: &dyn Estimator) -> Report {
         &sim.truth_associations,
         &slam.associations(),
     );
-    let scored = report.detections;
-    report.association_accuracy = with_lost(report.association_accuracy, scored, sim);
-    report.association_accuracy_majority =
-        with_lost(report.association_accuracy_majority, scored, sim);
-    report.detections += sim.lost_sightings;
+    report.association_accuracy_real_time = real_time;
+    report.count_lost_sightings(sim.lost_sightings);
     report.latency_ms = latency_ms(&slam.timing().updates);
     report.detector_sigma = slam.detector_noise().map(|n| [n.assumed, n.estimated]);
     report.loop_closure_ms = slam

@@ -3,6 +3,8 @@
 mod settings;
 mod sim_effects;
 
+use super::fs_eval::describe_sigma;
+
 use super::{CliError, bad_input, write_output};
 use cairn::fs_tools::Track;
 use cairn::fs_tools::course::{Course, start_on_line};
@@ -447,17 +449,10 @@ pub fn run_slam(a: SlamArgs) -> Result<(), super::CliError> {
 
 /// The detector's σ as assumed and as learned, in the units people read.
 fn describe_noise(noise: &cairn::slam::frontend::DetectorNoise) -> String {
-    let show = |[r, relative, b]: [f64; 3]| {
-        format!(
-            "σ_r {r:.3} m + {:.2}%, σ_b {:.2}°",
-            100.0 * relative,
-            b.to_degrees()
-        )
-    };
     format!(
         "assumed {}; learned {} (variance ×{:.2})",
-        show(noise.assumed),
-        show(noise.estimated),
+        describe_sigma(noise.assumed),
+        describe_sigma(noise.estimated),
         noise.variance_scale
     )
 }

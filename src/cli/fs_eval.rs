@@ -2,9 +2,7 @@
 
 use super::fs::{TRUTH_ASSOC, TRUTH_MAP, TRUTH_TRAJ, read_text};
 use super::{bad_input, file_name};
-use cairn::fs_tools::eval::{
-    Report, association_accuracy, association_labels, evaluate, latency_ms, position_errors,
-};
+use cairn::fs_tools::eval::{Report, evaluate, latency_ms, one_to_one_accuracy, position_errors};
 use cairn::plot::{MapPlot, draw};
 use cairn::slam::Cone;
 use cairn::slam::files::{self, StampedPose};
@@ -89,9 +87,7 @@ pub fn run_eval(a: EvalArgs) -> Result<(), super::CliError> {
             .map_err(bad_input(TRUTH_ASSOC))?;
         let real_time =
             files::associations_from_csv(&read_text(path)?).map_err(bad_input(path.display()))?;
-        let labels = association_labels(&truth, &real_time);
-        report.association_accuracy_real_time =
-            Some(association_accuracy(&truth, &real_time, &labels).0);
+        report.association_accuracy_real_time = Some(one_to_one_accuracy(&truth, &real_time).0);
     }
     if a.assoc.is_none() {
         // JSON writes it as null, the table as not scored.
@@ -263,15 +259,8 @@ pub fn table(r: &Report) -> String {
         rows.push(("final optimisation (ms)".into(), format!("{ms:.1}")));
     }
     if let Some([assumed, learned]) = r.detector_sigma {
-        let show = |[r, relative, b]: [f64; 3]| {
-            format!(
-                "{r:.3} m + {:.2}% / {:.2}°",
-                100.0 * relative,
-                b.to_degrees()
-            )
-        };
-        rows.push(("detector σ_r / σ_b, assumed".into(), show(assumed)));
-        rows.push(("  learned".into(), show(learned)));
+        rows.push(("detector noise, assumed".into(), describe_sigma(assumed)));
+        rows.push(("  learned".into(), describe_sigma(learned)));
     }
     let width = rows
         .iter()
@@ -281,4 +270,14 @@ pub fn table(r: &Report) -> String {
     rows.iter()
         .map(|(k, v)| format!("{k:<width$}  {v}\n"))
         .collect()
+}
+
+/// A detector's σ (range, its growth with range, bearing in radians) in the
+/// units people read.
+pub(super) fn describe_sigma([r, relative, b]: [f64; 3]) -> String {
+    format!(
+        "σ_r {r:.3} m + {:.2}%, σ_b {:.2}°",
+        100.0 * relative,
+        b.to_degrees()
+    )
 }

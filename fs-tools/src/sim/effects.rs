@@ -2,6 +2,7 @@
 //! noise, occlusion, speed profiles and sideslip.
 
 use cairn_core::SE2;
+use cairn_core::se2::normalize_angle;
 use cairn_slam::motion::integrate;
 use nalgebra::Vector2;
 use rand::Rng;
@@ -59,8 +60,7 @@ pub(super) fn behind(p: &Vector2<f64>, others: &[Vector2<f64>]) -> bool {
     let (r, b) = (p.norm(), p.y.atan2(p.x));
     others.iter().any(|q| {
         let rq = q.norm();
-        let db = (q.y.atan2(q.x) - b + std::f64::consts::PI).rem_euclid(std::f64::consts::TAU)
-            - std::f64::consts::PI;
+        let db = normalize_angle(q.y.atan2(q.x) - b);
         rq < r && db.abs() < (CONE_RADIUS / rq.max(CONE_RADIUS)).atan()
     })
 }
