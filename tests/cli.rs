@@ -523,7 +523,7 @@ fn help_lists_the_choices_and_groups_the_options() {
         "[possible values: graph, ekf, fastslam1, fastslam2]",
         "[possible values: unicycle, bicycle]",
         "[possible values: velocity, rot-trans-rot]",
-        "[possible values: standard, hard]",
+        "[possible values: standard, hard, realistic]",
     ] {
         assert!(slam.contains(values), "{values}: {slam}");
     }

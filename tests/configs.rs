@@ -18,7 +18,12 @@ fn shipped(name: &str) -> FrontEndConfig {
 
 #[test]
 fn every_shipped_config_reads_and_round_trips() {
-    for name in ["standard.toml", "hard.toml", "mrclam.toml"] {
+    for name in [
+        "standard.toml",
+        "hard.toml",
+        "realistic.toml",
+        "mrclam.toml",
+    ] {
         let config = shipped(name);
         let again = FrontEndConfig::from_toml(&config.to_toml()).expect("reads back");
         assert_eq!(again, config, "{name}");
@@ -47,10 +52,19 @@ fn the_preset_files_describe_the_presets() {
     for (name, preset) in [
         ("standard.toml", Preset::standard()),
         ("hard.toml", Preset::hard()),
+        ("realistic.toml", Preset::realistic()),
     ] {
         let config = shipped(name);
         let (s, o) = (&preset.sensor, &preset.odometry);
+        // A bias that holds is the default's; one that wanders is given.
+        let walk = if o.yaw_rate_bias_walk > 0.0 {
+            o.yaw_rate_bias_walk
+        } else {
+            FrontEndConfig::default().yaw_rate_bias_walk
+        };
         let pairs = [
+            ("scan_latency", config.scan_latency, s.latency),
+            ("yaw_rate_bias_walk", config.yaw_rate_bias_walk, walk),
             ("range_sigma", config.range_sigma, s.range_sigma),
             (
                 "range_sigma_relative",
@@ -111,6 +125,11 @@ fn bad_files_name_the_key() {
             "bearing_sigma must be finite and positive",
         ),
         ("fov = 7.0", "fov must be in (0, 2π]"),
+        ("scan_latency = 1.5", "scan_latency must be in [0, 1)"),
+        (
+            "sideslip_sigma = -0.01",
+            "sideslip_sigma must be finite and ≥ 0",
+        ),
         (
             "detection_probability = 1.5",
             "detection_probability must be in (0, 1]",

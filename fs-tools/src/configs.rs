@@ -8,16 +8,17 @@ use cairn_slam::frontend::association::AssociationMethod;
 use cairn_slam::frontend::{ConfigError, FrontEndConfig};
 
 /// The shipped configuration files of the simulator presets, by preset name.
-pub const PRESET_CONFIGS: [(&str, &str); 2] = [
+pub const PRESET_CONFIGS: [(&str, &str); 3] = [
     ("standard", include_str!("../../configs/standard.toml")),
     ("hard", include_str!("../../configs/hard.toml")),
+    ("realistic", include_str!("../../configs/realistic.toml")),
 ];
 
 /// Why a preset's assumed settings are not there.
 #[derive(Debug, thiserror::Error)]
 pub enum PresetConfigError {
     /// No shipped file for this preset.
-    #[error("no shipped config for the preset {0:?} (standard and hard have one)")]
+    #[error("no shipped config for the preset {0:?} (standard, hard and realistic have one)")]
     Unknown(String),
     /// The shipped file does not read (a broken build).
     #[error("configs/{0}.toml: {1}")]

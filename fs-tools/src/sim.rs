@@ -462,9 +462,10 @@ pub fn simulate(track: &Track, course: &Course, config: &SimConfig) -> Simulatio
     let mut truth = Vec::new();
     let mut truth_associations = Vec::new();
     let mut tracker = Tracker::new(sensor.tracker);
-    // The poses of the last `latency` seconds, newest last: a scan sees
-    // from the oldest.
-    let delay = (sensor.latency * odo.rate).round() as usize;
+    // The poses of the last `latency` seconds and one step more, newest
+    // last: a scan sees from between the two oldest.
+    let age = sensor.latency * odo.rate;
+    let delay = age.ceil() as usize;
     let mut recent: VecDeque<SE2> = VecDeque::with_capacity(delay + 1);
     let mut bias = odo.yaw_rate_bias;
     let mut speed = config.speed;
@@ -508,7 +509,7 @@ pub fn simulate(track: &Track, course: &Course, config: &SimConfig) -> Simulatio
         }
         recent.push_back(pose);
         if step.is_multiple_of(scan_every) {
-            let seen_from = recent.front().copied().unwrap_or(pose);
+            let seen_from = pose_ago(&recent, age);
             let (cones, sources) = detect(
                 track,
                 &hidden,
@@ -567,3 +568,25 @@ pub use scanner::point_clouds;
 
 #[cfg(test)]
 mod tests;
+
+/// The pose `age` odometry steps before the newest of `recent` (whose
+/// poses are one step apart, newest last), interpolated between steps;
+/// the oldest there is before the log began.
+fn pose_ago(recent: &VecDeque<SE2>, age: f64) -> SE2 {
+    let newest = recent.len() - 1;
+    let steps = age.ceil() as usize;
+    if steps > newest {
+        return recent[0];
+    }
+    let (older, newer) = (
+        recent[newest - steps],
+        recent[newest - steps.saturating_sub(1)],
+    );
+    let toward_newer = steps as f64 - age;
+    let turn = cairn_core::se2::normalize_angle(newer.theta - older.theta);
+    SE2::new(
+        older.t.x + toward_newer * (newer.t.x - older.t.x),
+        older.t.y + toward_newer * (newer.t.y - older.t.y),
+        older.theta + toward_newer * turn,
+    )
+}

@@ -15,7 +15,7 @@ use cairn_slam::Cone;
 use cairn_slam::files::{Association, StampedPose};
 use cairn_slam::frontend::{FrontEndConfig, OptimiseError, nearest_information};
 use cairn_slam::log::Record;
-use cairn_slam::motion::Odometry;
+use cairn_slam::motion::{Correction, Odometry};
 use cairn_solvers::{Initialization, Summary};
 use nalgebra::Vector2;
 use std::collections::HashMap;
@@ -73,7 +73,8 @@ pub fn smooth(
     associations: &[Association],
     config: &FrontEndConfig,
 ) -> Result<Smoothed, SmoothError> {
-    let mut motion = Odometry::new(config.motion, config.motion_noise());
+    let mut motion =
+        Odometry::new(config.motion, config.motion_noise()).with_scan_latency(config.scan_latency);
     let mut start = SE2::identity();
     let mut times = Vec::new();
     let mut steps = Vec::new();
@@ -87,14 +88,14 @@ pub fn smooth(
                 yaw_rate,
                 steer,
                 ..
-            } => motion.record(*t, *v, *yaw_rate, *steer, (1.0, 0.0)),
+            } => motion.record(*t, *v, *yaw_rate, *steer, Correction::NONE),
             Record::Cones { t, cones } => {
-                motion.advance(*t, (1.0, 0.0));
+                let t = motion.advance_to_scan(*t, Correction::NONE);
                 let (delta, cov) = motion.take();
                 // A robot standing still has a step of zero covariance: the
                 // ridge keeps its information finite.
                 steps.push((delta, nearest_information(&cov)));
-                times.push(*t);
+                times.push(t);
                 scans.push(cones);
             }
             _ => {}

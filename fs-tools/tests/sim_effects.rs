@@ -63,8 +63,15 @@ fn pose_at(sim: &Simulation, t: f64) -> SE2 {
     let i = sim
         .truth
         .partition_point(|p| p.t < t)
-        .min(sim.truth.len() - 1);
-    sim.truth[i].pose
+        .clamp(1, sim.truth.len() - 1);
+    let (a, b) = (&sim.truth[i - 1], &sim.truth[i]);
+    let f = ((t - a.t) / (b.t - a.t)).clamp(0.0, 1.0);
+    let turn = cairn_core::se2::normalize_angle(b.pose.theta - a.pose.theta);
+    SE2::new(
+        a.pose.t.x + f * (b.pose.t.x - a.pose.t.x),
+        a.pose.t.y + f * (b.pose.t.y - a.pose.t.y),
+        a.pose.theta + f * turn,
+    )
 }
 
 #[test]
@@ -171,20 +178,30 @@ fn occlusion_hides_cones_behind_nearer_ones() {
 
 #[test]
 fn scans_are_measured_from_where_the_car_was_before_their_stamp() {
-    let sim = run(1.0, |p| p.sensor.latency = 0.1);
-    let (mut at_stamp, mut before) = (0.0, 0.0);
+    // 0.05 s is two and a half odometry steps: measured between them.
+    let sim = run(1.0, |p| p.sensor.latency = 0.05);
+    let mut error = [0.0; 4];
+    let ages = [0.0, 0.04, 0.05, 0.06];
     for (t, pose, detections) in scans(&sim) {
-        let earlier = pose_at(&sim, t - 0.1);
+        let earlier = ages.map(|age| {
+            if age == 0.0 {
+                pose
+            } else {
+                pose_at(&sim, t - age)
+            }
+        });
         for (d, cone) in detections {
             let cone = sim.truth_map[cone.expect("no false positives")].position;
-            at_stamp += (pose.transform_point(&d.position) - cone).norm();
-            before += (earlier.transform_point(&d.position) - cone).norm();
+            for (e, from) in error.iter_mut().zip(&earlier) {
+                *e += (from.transform_point(&d.position) - cone).norm();
+            }
         }
     }
-    // 0.1 s at 5 m/s: the stamp's pose is 0.5 m off, the earlier one only
-    // by the detector's noise.
-    println!("mean error from the stamp's pose {at_stamp}, from 0.1 s before {before}");
-    assert!(before < 0.5 * at_stamp, "{before} vs {at_stamp}");
+    // At 5 m/s the stamp's pose is 0.25 m off, a step either side 0.05 m;
+    // the pose 0.05 s before only by the detector's noise.
+    println!("summed error from the pose this long before the stamp {ages:?}: {error:?}");
+    assert!(error[2] < 0.5 * error[0], "{error:?}");
+    assert!(error[2] < error[1] && error[2] < error[3], "{error:?}");
 }
 
 #[test]

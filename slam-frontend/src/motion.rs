@@ -3,6 +3,7 @@
 
 use cairn_core::SE2;
 use nalgebra::{Matrix2, Matrix3, SMatrix, Vector2};
+use std::collections::VecDeque;
 
 /// How odometry turns into a yaw rate.
 #[derive(Clone, Copy, Debug, PartialEq, serde::Serialize, serde::Deserialize)]
@@ -30,6 +31,10 @@ pub enum MotionNoise {
         speed_sigma_relative: f64,
         /// Yaw-rate σ (rad/s).
         yaw_rate_sigma: f64,
+        /// Slip angle σ per m/s² of lateral acceleration (rad per m/s²):
+        /// in a turn the car moves sideways, which wheel speed and gyro
+        /// odometry do not see.
+        sideslip_sigma: f64,
     },
     /// The odometry model of Thrun et al. (Probabilistic Robotics, 5.4): the
     /// step as a rotation δrot1, a translation δtrans and a rotation δrot2,
@@ -49,6 +54,29 @@ impl MotionNoise {
             MotionNoise::RotTransRot { .. } => "rot-trans-rot",
         }
     }
+}
+
+/// What the odometry is corrected by before it is integrated: its speed
+/// scale, its yaw-rate bias and the car's sideslip.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Correction {
+    /// True speed = measured speed × `speed_scale`.
+    pub speed_scale: f64,
+    /// True yaw rate = measured yaw rate − `yaw_rate_bias` (rad/s).
+    pub yaw_rate_bias: f64,
+    /// The car moves `sideslip` × its lateral acceleration (rad per m/s²)
+    /// to the left of its heading: a linear tyre's slip angle, which wheel
+    /// speeds and a gyro do not see.
+    pub sideslip: f64,
+}
+
+impl Correction {
+    /// The odometry as measured.
+    pub const NONE: Correction = Correction {
+        speed_scale: 1.0,
+        yaw_rate_bias: 0.0,
+        sideslip: 0.0,
+    };
 }
 
 /// α₁…α₄ of the rot-trans-rot model matching the default velocity model
@@ -77,6 +105,11 @@ pub struct Odometry {
     /// step integrates to a heading variance of σ² Σ dt².
     step_time2: f64,
     distance: f64,
+    /// How long after it was measured a scan is stamped (s).
+    scan_latency: f64,
+    /// Records (t, v, yaw rate, steer) newer than the latest scan's moment
+    /// of measurement could be: integrated once a later scan needs them.
+    delayed: VecDeque<(f64, f64, f64, Option<f64>)>,
 }
 
 impl Odometry {
@@ -91,18 +124,60 @@ impl Odometry {
             delta_cov: Matrix3::zeros(),
             step_time2: 0.0,
             distance: 0.0,
+            scan_latency: 0.0,
+            delayed: VecDeque::new(),
         }
     }
 
-    /// Integrates up to `t` with the held record, then holds this one.
+    /// Scans are stamped `latency` seconds after they were measured: the
+    /// odometry is integrated up to that moment ([`Odometry::advance_to_scan`]),
+    /// and records in between wait for the next scan.
+    pub fn with_scan_latency(mut self, latency: f64) -> Self {
+        self.scan_latency = latency.max(0.0);
+        self
+    }
+
+    /// Takes in the record at `t`: integrates up to `t` with the held
+    /// record, then holds this one (with a scan latency, once a scan
+    /// measured after `t` arrives).
     pub fn record(
         &mut self,
         t: f64,
         v: f64,
         yaw_rate: f64,
         steer: Option<f64>,
-        correction: (f64, f64),
+        correction: Correction,
     ) {
+        if self.scan_latency > 0.0 {
+            self.release(t - self.scan_latency, correction);
+            self.delayed.push_back((t, v, yaw_rate, steer));
+        } else {
+            self.hold(t, v, yaw_rate, steer, correction);
+        }
+    }
+
+    /// Integrates up to the moment a scan stamped `t` was measured (`t`
+    /// less the scan latency) and returns that moment, the time the scan's
+    /// pose belongs to.
+    pub fn advance_to_scan(&mut self, t: f64, correction: Correction) -> f64 {
+        let measured = t - self.scan_latency;
+        self.release(measured, correction);
+        self.advance(measured, correction);
+        measured
+    }
+
+    /// Holds the delayed records up to time `until`.
+    fn release(&mut self, until: f64, correction: Correction) {
+        while let Some(&(t, v, yaw_rate, steer)) = self.delayed.front() {
+            if t > until {
+                break;
+            }
+            self.delayed.pop_front();
+            self.hold(t, v, yaw_rate, steer, correction);
+        }
+    }
+
+    fn hold(&mut self, t: f64, v: f64, yaw_rate: f64, steer: Option<f64>, correction: Correction) {
         self.advance(t, correction);
         let omega = match (self.model, steer) {
             (MotionModel::Bicycle { wheelbase }, Some(s)) => v * s.tan() / wheelbase,
@@ -112,9 +187,8 @@ impl Odometry {
         self.time = Some(t);
     }
 
-    /// Integrates the held record up to time `t`. `correction` is
-    /// (speed scale, yaw-rate bias): true v = scale·v, true ω = ω − bias.
-    pub fn advance(&mut self, t: f64, (scale, bias): (f64, f64)) {
+    /// Integrates the held record up to time `t`, corrected by `correction`.
+    pub fn advance(&mut self, t: f64, correction: Correction) {
         let (Some((v, omega)), Some(t0)) = (self.held, self.time) else {
             return;
         };
@@ -122,8 +196,12 @@ impl Odometry {
         if dt <= 0.0 || !dt.is_finite() {
             return;
         }
-        let (v, omega) = (v * scale, omega - bias);
-        let step = integrate(&SE2::identity(), v, omega, dt);
+        let (v, omega) = (v * correction.speed_scale, omega - correction.yaw_rate_bias);
+        let mut step = integrate(&SE2::identity(), v, omega, dt);
+        let slip = correction.sideslip * v * omega;
+        if slip != 0.0 {
+            step.t = SE2::new(0.0, 0.0, slip).rotation() * step.t;
+        }
         // Covariance of delta ∘ step: F with respect to delta, and the
         // step's own covariance rotated into delta's frame.
         let r = self.delta.rotation();
@@ -148,6 +226,7 @@ impl Odometry {
                 speed_sigma,
                 speed_sigma_relative,
                 yaw_rate_sigma,
+                sideslip_sigma,
             } => {
                 // First order in dt: the step moves v·dt ahead and turns ω·dt.
                 let mut g = SMatrix::<f64, 3, 2>::zeros();
@@ -155,7 +234,12 @@ impl Odometry {
                 g[(2, 1)] = dt;
                 let sv = speed_sigma + speed_sigma_relative * v.abs();
                 let q = Matrix2::new(sv * sv, 0.0, 0.0, yaw_rate_sigma.powi(2));
-                g * q * g.transpose()
+                let mut cov = g * q * g.transpose();
+                // Sideways by the slip angle of the lateral acceleration v·ω.
+                let omega = step.theta / dt;
+                let lateral = v * dt * sideslip_sigma * (v * omega).abs();
+                cov[(1, 1)] += lateral * lateral;
+                cov
             }
             MotionNoise::RotTransRot { alpha } => {
                 let (rot1, trans, rot2) = rot_trans_rot(step);
@@ -316,6 +400,7 @@ mod tests {
                 speed_sigma: 0.1,
                 speed_sigma_relative: 0.01,
                 yaw_rate_sigma: 0.02,
+                sideslip_sigma: 0.01,
             },
             MotionNoise::RotTransRot {
                 alpha: DEFAULT_ALPHA,
@@ -332,7 +417,7 @@ mod tests {
                     5.0,
                     omega,
                     None,
-                    (1.0, 0.0),
+                    Correction::NONE,
                 );
             }
             let (delta, cov) = odometry.take();
@@ -346,5 +431,75 @@ mod tests {
             assert!(cov.cholesky().is_some(), "{noise:?}: {cov}");
             assert_eq!(odometry.take().1, Matrix3::zeros());
         }
+    }
+
+    fn constant_turn(latency: f64) -> Odometry {
+        let noise = MotionNoise::Velocity {
+            speed_sigma: 0.1,
+            speed_sigma_relative: 0.0,
+            yaw_rate_sigma: 0.01,
+            sideslip_sigma: 0.0,
+        };
+        Odometry::new(MotionModel::Unicycle, noise).with_scan_latency(latency)
+    }
+
+    #[test]
+    fn a_late_scan_gets_the_pose_it_was_measured_from() {
+        // 2 m/s, turning 0.5 rad/s, records every 20 ms, a scan stamped at
+        // 1 s that is 50 ms old; the speed doubles from the record at 0.98 s,
+        // after the scan was measured.
+        let mut late = constant_turn(0.05);
+        for k in 0..=50 {
+            let t = k as f64 * 0.02;
+            let v = if t < 0.97 { 2.0 } else { 4.0 };
+            late.record(t, v, 0.5, None, Correction::NONE);
+        }
+        let measured = late.advance_to_scan(1.0, Correction::NONE);
+        assert!((measured - 0.95).abs() < 1e-12);
+        let (delta, _) = late.take();
+        let expected = integrate(&SE2::identity(), 2.0, 0.5, 0.95);
+        assert!(
+            (delta.to_vector() - expected.to_vector()).norm() < 1e-12,
+            "{delta:?}"
+        );
+        // The records after 0.95 s count toward the next scan, measured at
+        // 1.05 s: 2 m/s until 0.98 s, then 4 m/s.
+        late.advance_to_scan(1.1, Correction::NONE);
+        let (next, _) = late.take();
+        let from = integrate(&SE2::identity(), 2.0, 0.5, 0.03);
+        let expected = from.compose(&integrate(&SE2::identity(), 4.0, 0.5, 0.07));
+        assert!(
+            (next.to_vector() - expected.to_vector()).norm() < 1e-12,
+            "{next:?}"
+        );
+        // Without latency the same records reach the stamp.
+        let mut prompt = constant_turn(0.0);
+        for k in 0..=50 {
+            prompt.record(k as f64 * 0.02, 2.0, 0.5, None, Correction::NONE);
+        }
+        assert_eq!(prompt.advance_to_scan(1.0, Correction::NONE), 1.0);
+        let expected = integrate(&SE2::identity(), 2.0, 0.5, 1.0);
+        assert!((prompt.take().0.to_vector() - expected.to_vector()).norm() < 1e-12);
+    }
+
+    #[test]
+    fn sideslip_turns_the_path_not_the_heading() {
+        let slide = Correction {
+            sideslip: 0.01,
+            ..Correction::NONE
+        };
+        let (mut straight, mut sliding) = (constant_turn(0.0), constant_turn(0.0));
+        for k in 0..=100 {
+            let t = k as f64 * 0.01;
+            straight.record(t, 5.0, 0.8, None, Correction::NONE);
+            sliding.record(t, 5.0, 0.8, None, slide);
+        }
+        let (a, _) = straight.take();
+        let (b, _) = sliding.take();
+        assert!((a.theta - b.theta).abs() < 1e-12);
+        // Each step moves 0.01 × 4 m/s² = 0.04 rad to the left of its arc.
+        let turned = a.t.perp(&b.t).atan2(a.t.dot(&b.t));
+        assert!((turned - 0.04).abs() < 1e-9, "{turned}");
+        assert!((a.t.norm() - b.t.norm()).abs() < 1e-9);
     }
 }

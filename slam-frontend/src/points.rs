@@ -12,7 +12,7 @@ use crate::files::{Association, StampedPose};
 use crate::frontend::{Mode, MotionModel, Timing};
 use crate::log::{Detection, Record};
 use crate::map::Cone;
-use crate::motion::{MotionNoise, Odometry};
+use crate::motion::{Correction, MotionNoise, Odometry};
 use cairn_core::{DisjointSets, SE2};
 use nalgebra::{DMatrix, DVector, Matrix2, Matrix3, Vector2, Vector3};
 
@@ -302,6 +302,7 @@ impl Clustered {
             speed_sigma: 0.0,
             speed_sigma_relative: 0.0,
             yaw_rate_sigma: 0.0,
+            sideslip_sigma: 0.0,
         };
         Self {
             inner,
@@ -314,7 +315,7 @@ impl Clustered {
     /// The detections a cloud gives, with identities carried from the
     /// previous cloud.
     pub fn detections(&mut self, t: f64, cloud: &[[f64; 3]]) -> Vec<Detection> {
-        self.motion.advance(t, (1.0, 0.0));
+        self.motion.advance(t, Correction::NONE);
         let (delta, _) = self.motion.take();
         let clusters = extract(cloud, &self.config);
         let centroids: Vec<Vector2<f64>> = clusters
@@ -340,7 +341,8 @@ impl Estimator for Clustered {
                 self.inner.process(&Record::Cones { t: *t, cones });
             }
             Record::Odom { t, v, yaw_rate, .. } => {
-                self.motion.record(*t, *v, *yaw_rate, None, (1.0, 0.0));
+                self.motion
+                    .record(*t, *v, *yaw_rate, None, Correction::NONE);
                 self.inner.process(record);
             }
             _ => self.inner.process(record),

@@ -154,10 +154,10 @@ pub struct SlamArgs {
     /// Refuse point clouds of more points than this.
     #[arg(long, default_value_t = ScanLimits::default().points)]
     max_points: usize,
-    /// Assumed detector noise preset (`standard` or `hard`, the simulator's
-    /// presets, as configs/standard.toml and configs/hard.toml); the options
-    /// below override its parts. Not with `--config`.
-    #[arg(long, conflicts_with = "config", value_parser = ["standard", "hard"])]
+    /// Assumed sensor preset (`standard`, `hard` or `realistic`, the
+    /// simulator's presets, as configs/<preset>.toml); the options below
+    /// override its parts. Not with `--config`.
+    #[arg(long, conflicts_with = "config", value_parser = ["standard", "hard", "realistic"])]
     noise: Option<String>,
     /// Assumed range noise σ (m), the part that does not grow with range.
     #[arg(long)]

@@ -50,11 +50,19 @@ enum Case {
     NoBigOrange,
     /// The car starting on the start line.
     StartOnLine,
+    /// The car sliding 0.01 rad per m/s² of lateral acceleration.
+    Sideslip,
+    /// Scans stamped 50 ms after they were measured.
+    Latency,
+    /// The same, the config giving the latency.
+    LatencyTold,
     /// The `realistic` preset.
     Realistic,
+    /// The same, the graph told `configs/realistic.toml`.
+    RealisticTold,
 }
 
-const CASES: [Case; 9] = [
+const CASES: [Case; 13] = [
     Case::Noise(0.5),
     Case::Noise(2.0),
     Case::NoiseLearned,
@@ -63,7 +71,11 @@ const CASES: [Case; 9] = [
     Case::BiasWalkTold,
     Case::NoBigOrange,
     Case::StartOnLine,
+    Case::Sideslip,
+    Case::Latency,
+    Case::LatencyTold,
     Case::Realistic,
+    Case::RealisticTold,
 ];
 
 impl Case {
@@ -76,7 +88,11 @@ impl Case {
             Case::BiasWalkTold => "the same, `yaw_rate_bias_walk = 5e-4` in the config".into(),
             Case::NoBigOrange => "no big orange cones".into(),
             Case::StartOnLine => "starting on the start line".into(),
+            Case::Sideslip => "sideslip 0.01 rad per m/s²".into(),
+            Case::Latency => "scans 50 ms late".into(),
+            Case::LatencyTold => "the same, `scan_latency = 0.05` in the config".into(),
             Case::Realistic => "`realistic` preset".into(),
+            Case::RealisticTold => "the same, told `configs/realistic.toml`".into(),
         }
     }
 
@@ -100,7 +116,9 @@ impl Case {
                 course = Course::from_track(&track).ok()?;
             }
             Case::StartOnLine => track.start = start_on_line(&track, &course)?,
-            Case::Realistic => preset = Preset::realistic(),
+            Case::Sideslip => preset.odometry.sideslip = 0.01,
+            Case::Latency | Case::LatencyTold => preset.sensor.latency = 0.05,
+            Case::Realistic | Case::RealisticTold => preset = Preset::realistic(),
         }
         Some((track, course, preset))
     }
@@ -122,11 +140,19 @@ pub fn run(a: MismatchArgs) -> Result<(), super::CliError> {
     for case in CASES {
         for t in 0..tracks.len() {
             for method in AssociationMethod::ALL {
-                let mut told = assumed_config("standard", method, EstimatorKind::Graph)
+                let file = if case == Case::RealisticTold {
+                    "realistic"
+                } else {
+                    "standard"
+                };
+                let mut told = assumed_config(file, method, EstimatorKind::Graph)
                     .map_err(|e| e.to_string())?;
                 told.learn_detector_noise = case == Case::NoiseLearned;
                 if case == Case::BiasWalkTold {
                     told.yaw_rate_bias_walk = 5e-4;
+                }
+                if case == Case::LatencyTold {
+                    told.scan_latency = 0.05;
                 }
                 for seed in a.first_seed..a.first_seed + a.set.seeds {
                     jobs.push((case, t, method, seed, told.clone()));
@@ -188,8 +214,8 @@ fn markdown(a: &MismatchArgs, tracks: &Tracks, runs: &[Run]) -> String {
          ({} runs: {} tracks × {} cases × 4 association methods × {} seeds, 2 laps at 5 m/s; \
          cases that do not apply to a track, such as a start line on a track without big \
          orange cones, are left out). The graph front end is told `configs/standard.toml` \
-         for every log, and what a case's label adds (`--learn-noise`, a config value); \
-         each log is `standard` but for the case. Scored as in \
+         for every log, and what a case's label adds (`--learn-noise`, a config value, or \
+         `configs/realistic.toml` in its place); each log is `standard` but for the case. Scored as in \
          `docs/fs-slam.md`: association with each true cone standing for one landmark, the \
          map matched one-to-one. `mean` is over runs; `worst` the worst run.\n",
         a.set.seeds,

@@ -1,6 +1,7 @@
-//! EKF-SLAM: one Gaussian over the pose and every landmark, with the full
-//! covariance (Thrun et al., Probabilistic Robotics, 10.2). Each prediction
-//! costs O(n) and each range-bearing update O(n²) in the state size n.
+//! EKF-SLAM: one Gaussian over the pose, the gyro's bias and every
+//! landmark, with the full covariance (Thrun et al., Probabilistic Robotics,
+//! 10.2). Each prediction costs O(n) and each range-bearing update O(n²) in
+//! the state size n.
 
 use super::{Choice, Run, candidates, clear_of, landmark_from, measurement, predict};
 use crate::files::{Association, StampedPose};
@@ -17,6 +18,13 @@ use std::time::Instant;
 
 /// State entries of the pose (x, y, θ).
 const POSE: usize = 3;
+/// The state entry of the yaw-rate bias (rad/s), after the pose.
+const BIAS: usize = 3;
+/// State entries before the landmarks': the pose and the bias.
+const ROBOT: usize = 4;
+
+/// The robot's block of the covariance.
+type RobotMatrix = SMatrix<f64, ROBOT, ROBOT>;
 
 #[derive(Clone, Debug)]
 struct Landmark {
@@ -35,34 +43,48 @@ pub struct EkfSlam {
     p: DMatrix<f64>,
     dim: usize,
     landmarks: Vec<Landmark>,
-    /// Landmark owning each slot, by (slot − 3) / 2.
+    /// Landmark owning each slot, by (slot − 4) / 2.
     owners: Vec<usize>,
     poses: Vec<StampedPose>,
     detections: Vec<(usize, usize, Option<usize>)>,
     /// P Hᵀ and the gain of the current update (capacity × 2).
     pht: DMatrix<f64>,
     gain: DMatrix<f64>,
+    /// The bias's random walk (rad/s/√s).
+    bias_walk: f64,
+    /// The time of the last scan.
+    last_scan: Option<f64>,
 }
 
 impl EkfSlam {
     /// A filter that starts mapping at the origin (or the log's `start`).
     pub fn new(config: FrontEndConfig) -> Self {
-        let capacity = POSE + 2 * 64;
+        let capacity = ROBOT + 2 * 64;
         let mut p = DMatrix::zeros(capacity, capacity);
         for i in 0..POSE {
             p[(i, i)] = 1e-9;
         }
+        // The bias is known to the yaw-rate σ that covers it; the heading
+        // then takes the yaw rate's white noise alone.
+        p[(BIAS, BIAS)] = config.yaw_rate_sigma.powi(2);
+        let walk = config.yaw_rate_bias_walk;
+        let config = FrontEndConfig {
+            yaw_rate_sigma: config.yaw_rate_noise,
+            ..config
+        };
         Self {
             run: Run::new(config),
             x: DVector::zeros(capacity),
             p,
-            dim: POSE,
+            dim: ROBOT,
             landmarks: Vec::new(),
             owners: Vec::new(),
             poses: Vec::new(),
             detections: Vec::new(),
             pht: DMatrix::zeros(capacity, 2),
             gain: DMatrix::zeros(capacity, 2),
+            bias_walk: walk,
+            last_scan: None,
         }
     }
 
@@ -106,6 +128,12 @@ impl EkfSlam {
         SE2::from_vector(&self.x.fixed_rows::<3>(0).into_owned())
     }
 
+    /// The yaw-rate bias estimated so far (rad/s): true yaw rate =
+    /// measured − this.
+    pub fn yaw_rate_bias(&self) -> f64 {
+        self.x[BIAS]
+    }
+
     /// The current pose covariance.
     pub fn pose_cov(&self) -> Matrix3<f64> {
         self.p.fixed_view::<3, 3>(0, 0).into_owned()
@@ -139,7 +167,9 @@ impl EkfSlam {
                 .fixed_rows_mut::<3>(0)
                 .copy_from(&self.run.start.to_vector());
         }
-        self.predict_motion();
+        let dt = self.last_scan.map_or(0.0, |last| (t - last).max(0.0));
+        self.last_scan = Some(t);
+        self.predict_motion(dt);
         match self.run.place(&self.pose(), cones) {
             Err(()) => {
                 // Not placed on the given map yet: nothing is associated.
@@ -156,6 +186,9 @@ impl EkfSlam {
                 self.p
                     .fixed_view_mut::<3, 3>(0, 0)
                     .copy_from(&Matrix3::from_diagonal(&Vector3::new(0.25, 0.25, 0.05)));
+                // The placement says nothing of the bias.
+                self.p.fixed_view_mut::<3, 1>(0, BIAS).fill(0.0);
+                self.p.fixed_view_mut::<1, 3>(BIAS, 0).fill(0.0);
             }
             Ok(None) => {}
         }
@@ -212,21 +245,37 @@ impl EkfSlam {
         self.poses.push(StampedPose { t, pose });
     }
 
-    /// Moves the pose by the odometry since the last scan:
-    /// P_rr ← Jₚ P_rr Jₚᵀ + J_d Q J_dᵀ and P_rm ← Jₚ P_rm.
-    fn predict_motion(&mut self) {
+    /// Moves the pose by the odometry of the last `dt` seconds, its turn
+    /// less the bias: with F the robot's Jacobian, P_rr ← F P_rr Fᵀ + Q and
+    /// P_rm ← F P_rm.
+    fn predict_motion(&mut self, dt: f64) {
         let (delta, q) = self.run.motion.take();
         let pose = self.pose();
+        let bias = self.x[BIAS];
+        // The bias turns the step by −b·dt, its chord by half that.
+        let chord = SE2::new(0.0, 0.0, -0.5 * bias * dt).rotation() * delta.t;
+        let delta = SE2::new(chord.x, chord.y, delta.theta - bias * dt);
         let (j_pose, j_delta) = compose_jacobians(&pose, &delta);
+        let by_bias = j_delta * Vector3::new(0.5 * dt * chord.y, -0.5 * dt * chord.x, -dt);
+        let mut f = RobotMatrix::identity();
+        f.fixed_view_mut::<3, 3>(0, 0).copy_from(&j_pose);
+        f.fixed_view_mut::<3, 1>(0, BIAS).copy_from(&by_bias);
+        let mut noise = RobotMatrix::zeros();
+        noise
+            .fixed_view_mut::<3, 3>(0, 0)
+            .copy_from(&(j_delta * q * j_delta.transpose()));
+        noise[(BIAS, BIAS)] = self.bias_walk.powi(2) * dt;
         let n = self.dim;
-        let p_rr = self.pose_cov();
-        let p_rr = j_pose * p_rr * j_pose.transpose() + j_delta * q * j_delta.transpose();
-        self.p.fixed_view_mut::<3, 3>(0, 0).copy_from(&p_rr);
-        if n > POSE {
-            let cross = j_pose * self.p.view((0, POSE), (3, n - POSE));
-            self.p.view_mut((0, POSE), (3, n - POSE)).copy_from(&cross);
+        let p_rr = self.p.fixed_view::<ROBOT, ROBOT>(0, 0).into_owned();
+        let p_rr = f * p_rr * f.transpose() + noise;
+        self.p.fixed_view_mut::<ROBOT, ROBOT>(0, 0).copy_from(&p_rr);
+        if n > ROBOT {
+            let cross = f * self.p.view((0, ROBOT), (ROBOT, n - ROBOT));
             self.p
-                .view_mut((POSE, 0), (n - POSE, 3))
+                .view_mut((0, ROBOT), (ROBOT, n - ROBOT))
+                .copy_from(&cross);
+            self.p
+                .view_mut((ROBOT, 0), (n - ROBOT, ROBOT))
                 .copy_from(&cross.transpose());
         }
         self.x
@@ -271,7 +320,7 @@ impl EkfSlam {
             .owners
             .iter()
             .enumerate()
-            .map(|(k, _)| self.x.fixed_rows::<2>(POSE + 2 * k).into_owned())
+            .map(|(k, _)| self.x.fixed_rows::<2>(ROBOT + 2 * k).into_owned())
             .collect();
         // Pairs of different detections are correlated through the pose
         // and through the landmarks' joint covariance: H_a P H_bᵀ.
@@ -332,8 +381,9 @@ impl EkfSlam {
         true
     }
 
-    /// Localisation on the fixed map: only the pose is updated, with the
-    /// landmark's own uncertainty added to the measurement noise.
+    /// Localisation on the fixed map: only the pose and the bias are
+    /// updated, with the landmark's own uncertainty added to the
+    /// measurement noise.
     fn update_pose(&mut self, slot: usize, z: &Vector2<f64>, r: &Matrix2<f64>) -> bool {
         let pose = self.pose();
         let m = self.x.fixed_rows::<2>(slot).into_owned();
@@ -341,20 +391,23 @@ impl EkfSlam {
             return false;
         };
         let nu = super::innovation(z, &pred.z);
-        let p_rr = self.pose_cov();
+        let p_rr = self.p.fixed_view::<ROBOT, ROBOT>(0, 0).into_owned();
         let p_mm = self.p.fixed_view::<2, 2>(slot, slot).into_owned();
-        let pht: SMatrix<f64, 3, 2> = p_rr * pred.h_pose.transpose();
-        let s = pred.h_pose * pht + pred.h_landmark * p_mm * pred.h_landmark.transpose() + r;
+        let pht: SMatrix<f64, ROBOT, 2> =
+            p_rr.fixed_view::<ROBOT, 3>(0, 0) * pred.h_pose.transpose();
+        let s = pred.h_pose * pht.fixed_rows::<3>(0)
+            + pred.h_landmark * p_mm * pred.h_landmark.transpose()
+            + r;
         let Some(s_inv) = s.try_inverse() else {
             return false;
         };
         let k = pht * s_inv;
-        let x = pose.to_vector() + k * nu;
-        self.x.fixed_rows_mut::<3>(0).copy_from(&x);
+        let x = self.x.fixed_rows::<ROBOT>(0) + k * nu;
+        self.x.fixed_rows_mut::<ROBOT>(0).copy_from(&x);
         self.x[2] = normalize_angle(self.x[2]);
         let p_rr = p_rr - k * pht.transpose();
         self.p
-            .fixed_view_mut::<3, 3>(0, 0)
+            .fixed_view_mut::<ROBOT, ROBOT>(0, 0)
             .copy_from(&(0.5 * (p_rr + p_rr.transpose())));
         true
     }
@@ -426,8 +479,8 @@ impl EkfSlam {
                 self.p.swap_rows(slot + k, last + k);
                 self.p.swap_columns(slot + k, last + k);
             }
-            let moved = self.owners[(last - POSE) / 2];
-            self.owners[(slot - POSE) / 2] = moved;
+            let moved = self.owners[(last - ROBOT) / 2];
+            self.owners[(slot - ROBOT) / 2] = moved;
             self.landmarks[moved].slot = Some(slot);
         }
         self.owners.pop();
@@ -462,8 +515,8 @@ impl EkfSlam {
     /// correlation with it.
     fn freeze_map(&mut self) {
         let n = self.dim;
-        self.p.view_mut((0, POSE), (POSE, n - POSE)).fill(0.0);
-        self.p.view_mut((POSE, 0), (n - POSE, POSE)).fill(0.0);
+        self.p.view_mut((0, ROBOT), (ROBOT, n - ROBOT)).fill(0.0);
+        self.p.view_mut((ROBOT, 0), (n - ROBOT, ROBOT)).fill(0.0);
     }
 
     /// Keeps P symmetric against round-off from the one-sided downdates.

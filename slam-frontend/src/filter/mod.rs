@@ -16,7 +16,7 @@ use crate::frontend::association::{Candidates, Correlation, Pair, associate};
 use crate::frontend::{FrontEndConfig, Mode, Timing, chi2_99};
 use crate::log::{Detection, Record};
 use crate::map::Cone;
-use crate::motion::Odometry;
+use crate::motion::{Correction, Odometry};
 use crate::sighting::{ColorRate, Sighting, near_start};
 use cairn_core::SE2;
 use cairn_core::se2::normalize_angle;
@@ -141,7 +141,8 @@ struct Run {
 impl Run {
     fn new(config: FrontEndConfig) -> Self {
         Self {
-            motion: Odometry::new(config.motion, config.motion_noise()),
+            motion: Odometry::new(config.motion, config.motion_noise())
+                .with_scan_latency(config.scan_latency),
             colors: ColorRate::new(&config),
             config,
             mode: Mode::Mapping,
@@ -212,14 +213,15 @@ impl Run {
                 steer,
                 ..
             } => {
-                self.motion.record(*t, *v, *yaw_rate, *steer, (1.0, 0.0));
+                self.motion
+                    .record(*t, *v, *yaw_rate, *steer, Correction::NONE);
                 None
             }
             Record::Cones { t, cones } => {
-                self.motion.advance(*t, (1.0, 0.0));
+                let t = self.motion.advance_to_scan(*t, Correction::NONE);
                 self.colors.learn(cones, &mut self.config);
                 self.started = true;
-                Some((*t, cones))
+                Some((t, cones))
             }
             _ => None,
         }

@@ -45,6 +45,16 @@ pub struct FrontEndConfig {
     /// 0.156 m, 1e-4 0.168 m, 1e-3 0.225 m); a gyro whose bias wanders
     /// needs its own value (docs/fs-mismatch.md).
     pub yaw_rate_bias_walk: f64,
+    /// Slip angle σ per m/s² of lateral acceleration (rad per m/s²): how far
+    /// the car's velocity may turn off its heading in a corner, which wheel
+    /// speeds and a gyro do not see.
+    pub sideslip_sigma: f64,
+    /// How long after it was measured a scan is stamped (s), in [0, 1): the
+    /// detections are placed from the pose at that earlier moment, and the
+    /// trajectory's poses carry it. A detector pipeline's latency that is
+    /// left out shifts the map along the direction of travel by
+    /// speed × latency (0.25 m at 5 m/s and 50 ms).
+    pub scan_latency: f64,
     /// Model odometry noise as Thrun's rotation–translation–rotation with
     /// these α₁…α₄ instead of the speed and yaw-rate σ above.
     #[serde(skip_serializing_if = "Option::is_none")]
@@ -114,6 +124,8 @@ impl Default for FrontEndConfig {
             yaw_rate_noise: 0.005,
             rot_trans_rot: None,
             yaw_rate_bias_walk: 1e-5,
+            sideslip_sigma: 0.005,
+            scan_latency: 0.0,
             learn_detector_noise: false,
             gate: 9.21,
             new_landmark_gate: 25.0,
@@ -232,6 +244,8 @@ impl FrontEndConfig {
             ("relocalise_sigma", self.relocalise_sigma, NonNegative),
             ("yaw_rate_noise", self.yaw_rate_noise, Positive),
             ("yaw_rate_bias_walk", self.yaw_rate_bias_walk, NonNegative),
+            ("sideslip_sigma", self.sideslip_sigma, NonNegative),
+            ("scan_latency", self.scan_latency, Below1),
             ("gate", self.gate, Positive),
             (
                 "new_landmark_gate",
@@ -293,6 +307,7 @@ impl FrontEndConfig {
                 speed_sigma: self.speed_sigma,
                 speed_sigma_relative: self.speed_sigma_relative,
                 yaw_rate_sigma: self.yaw_rate_sigma,
+                sideslip_sigma: self.sideslip_sigma,
             },
         }
     }

@@ -149,7 +149,8 @@ impl GraphSlam {
             config.bearing_sigma,
         ];
         Self {
-            motion: Odometry::new(config.motion, config.motion_noise()),
+            motion: Odometry::new(config.motion, config.motion_noise())
+                .with_scan_latency(config.scan_latency),
             config,
             mode: Mode::Mapping,
             pose: SE2::identity(),
@@ -298,9 +299,11 @@ impl GraphSlam {
             Record::Cones { t, cones } => {
                 // A `start` record once the run has begun is ignored.
                 self.started = true;
-                self.motion.advance(*t, self.calibration.correction());
+                let t = self
+                    .motion
+                    .advance_to_scan(*t, self.calibration.correction());
                 let (start, closures) = (Instant::now(), self.loop_closures);
-                self.update(*t, cones);
+                self.update(t, cones);
                 let seconds = start.elapsed().as_secs_f64();
                 self.timing.updates.push(seconds);
                 if self.loop_closures > closures {
@@ -381,7 +384,7 @@ impl GraphSlam {
             let dt = self.poses.last().map_or(0.0, |p| t - p.t);
             let learn_bias = self.mode != Mode::Mapping;
             self.calibration
-                .learn(&previous, &pred, &pose, dt, learn_bias);
+                .learn(&previous, &pred, (&pose, &pose_cov), dt, learn_bias);
         }
         let keyframe = self.push_keyframe(
             t,
