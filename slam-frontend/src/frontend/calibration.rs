@@ -132,7 +132,7 @@ mod tests {
         let fit = Matrix3::from_diagonal(&nalgebra::Vector3::new(4e-4, 4e-4, 1e-5));
         for k in 0..400 {
             let omega = if (k / 50) % 2 == 0 { 0.8 } else { -0.8 };
-            let mut step = |slip: f64| {
+            let step = |slip: f64| {
                 let mut s = integrate(&SE2::identity(), 5.0, omega, dt);
                 s.t = SE2::new(0.0, 0.0, slip * 5.0 * omega).rotation() * s.t;
                 s
