@@ -57,9 +57,19 @@ fn simulate_map_and_evaluate_a_random_track() {
         "p99",
         "; loop closure ",
         "; final optimisation ",
+        "odometry learnt: speed ×",
     ] {
         assert!(summary.contains(part), "{part:?} missing from {summary}");
     }
+    // What the graph learnt of the odometry is kept with the timings; this
+    // log's car does not slide, and its speed reads 1% high.
+    let kept: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(&timing).unwrap()).unwrap();
+    let learnt = &kept["odometry_calibration"];
+    let slide = learnt["sideslip"].as_f64().unwrap();
+    assert!(slide.abs() < 0.003, "{learnt}");
+    let scale = learnt["speed_scale"].as_f64().unwrap();
+    assert!((scale - 1.0 / 1.01).abs() < 0.01, "{learnt}");
     let plot = dir.join("plot.svg");
     let o = cairn(&[
         "fs-eval",

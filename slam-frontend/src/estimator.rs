@@ -6,7 +6,9 @@
 use crate::files::{Association, StampedPose};
 use crate::filter::ekf::EkfSlam;
 use crate::filter::fastslam::{FastSlam, ParticleConfig, Version};
-use crate::frontend::{DetectorNoise, FrontEndConfig, GraphSlam, Mode, OptimiseError, Timing};
+use crate::frontend::{
+    Calibration, DetectorNoise, FrontEndConfig, GraphSlam, Mode, OptimiseError, Timing,
+};
 use crate::log::Record;
 use crate::map::Cone;
 use crate::points::{Clustered, PointCloudConfig};
@@ -34,6 +36,12 @@ pub trait Estimator {
     /// (the graph front end with `learn_detector_noise`); `None` where the
     /// estimator does not learn it.
     fn detector_noise(&self) -> Option<DetectorNoise> {
+        None
+    }
+    /// The odometry's speed scale, yaw-rate bias and the car's sideslip
+    /// as learnt while driving (the graph front end); `None` where the
+    /// estimator does not learn them.
+    fn calibration(&self) -> Option<Calibration> {
         None
     }
     /// Mapping or localising.
@@ -207,6 +215,9 @@ impl Estimator for GraphSlam {
     }
     fn detector_noise(&self) -> Option<DetectorNoise> {
         GraphSlam::detector_noise(self)
+    }
+    fn calibration(&self) -> Option<Calibration> {
+        Some(GraphSlam::calibration(self))
     }
     fn mode(&self) -> Mode {
         GraphSlam::mode(self)

@@ -372,6 +372,9 @@ impl Estimator for Clustered {
     fn detector_noise(&self) -> Option<crate::frontend::DetectorNoise> {
         self.inner.detector_noise()
     }
+    fn calibration(&self) -> Option<crate::frontend::Calibration> {
+        self.inner.calibration()
+    }
     fn mode(&self) -> Mode {
         self.inner.mode()
     }

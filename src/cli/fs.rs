@@ -406,6 +406,13 @@ pub fn run_slam(a: SlamArgs) -> Result<(), super::CliError> {
         "detector_sigma": slam.detector_noise().map(|n| {
             serde_json::json!({"assumed": n.assumed, "estimated": n.estimated})
         }),
+        "odometry_calibration": slam.calibration().map(|c| {
+            serde_json::json!({
+                "speed_scale": c.speed_scale,
+                "yaw_rate_bias": c.yaw_rate_bias,
+                "sideslip": c.sideslip,
+            })
+        }),
     })
     .to_string();
     let real_time = files::associations_to_csv(&real_time);
@@ -443,6 +450,12 @@ pub fn run_slam(a: SlamArgs) -> Result<(), super::CliError> {
     );
     if let Some(noise) = slam.detector_noise() {
         eprintln!("detector noise {}", describe_noise(&noise));
+    }
+    if let Some(c) = slam.calibration() {
+        eprintln!(
+            "odometry learnt: speed ×{:.4}, sideslip {:.4} rad per m/s² of lateral acceleration",
+            c.speed_scale, c.sideslip
+        );
     }
     Ok(())
 }
