@@ -87,8 +87,8 @@ pub fn smooth(
                 v,
                 yaw_rate,
                 steer,
-                ..
-            } => motion.record(*t, *v, *yaw_rate, *steer, Correction::NONE),
+                vy,
+            } => motion.record(*t, (*v, *vy), *yaw_rate, *steer, Correction::NONE),
             Record::Cones { t, cones } => {
                 let t = motion.advance_to_scan(*t, Correction::NONE);
                 let (delta, cov) = motion.take();

@@ -84,6 +84,15 @@ impl Correction {
 /// (α₃) and 0.4 mrad in heading (α₂); α₁ and α₄ cover turning.
 pub const DEFAULT_ALPHA: [f64; 4] = [1e-3, 1.6e-5, 2.5e-3, 1e-4];
 
+/// An odometry record waiting for the scan measured after it.
+#[derive(Clone, Copy, Debug)]
+struct Delayed {
+    t: f64,
+    speeds: (f64, Option<f64>),
+    yaw_rate: f64,
+    steer: Option<f64>,
+}
+
 /// Odometry errors are mostly bias, so they add up over a scan interval
 /// rather than average out; the step covariance is scaled as for this many
 /// correlated steps.
@@ -96,8 +105,8 @@ const CORRELATED_STEPS: f64 = 10.0;
 pub struct Odometry {
     model: MotionModel,
     noise: MotionNoise,
-    /// (speed, yaw rate) held until the next record.
-    held: Option<(f64, f64)>,
+    /// (speed, yaw rate, lateral speed) held until the next record.
+    held: Option<(f64, f64, Option<f64>)>,
     time: Option<f64>,
     delta: SE2,
     delta_cov: Matrix3<f64>,
@@ -107,9 +116,9 @@ pub struct Odometry {
     distance: f64,
     /// How long after it was measured a scan is stamped (s).
     scan_latency: f64,
-    /// Records (t, v, yaw rate, steer) newer than the latest scan's moment
-    /// of measurement could be: integrated once a later scan needs them.
-    delayed: VecDeque<(f64, f64, f64, Option<f64>)>,
+    /// Records newer than the latest scan's moment of measurement could
+    /// be: integrated once a later scan needs them.
+    delayed: VecDeque<Delayed>,
 }
 
 impl Odometry {
@@ -139,20 +148,26 @@ impl Odometry {
 
     /// Takes in the record at `t`: integrates up to `t` with the held
     /// record, then holds this one (with a scan latency, once a scan
-    /// measured after `t` arrives).
+    /// measured after `t` arrives). A measured lateral speed `vy` moves
+    /// the car sideways instead of the sideslip of `correction`.
     pub fn record(
         &mut self,
         t: f64,
-        v: f64,
+        (v, vy): (f64, Option<f64>),
         yaw_rate: f64,
         steer: Option<f64>,
         correction: Correction,
     ) {
         if self.scan_latency > 0.0 {
             self.release(t - self.scan_latency, correction);
-            self.delayed.push_back((t, v, yaw_rate, steer));
+            self.delayed.push_back(Delayed {
+                t,
+                speeds: (v, vy),
+                yaw_rate,
+                steer,
+            });
         } else {
-            self.hold(t, v, yaw_rate, steer, correction);
+            self.hold(t, (v, vy), yaw_rate, steer, correction);
         }
     }
 
@@ -168,37 +183,52 @@ impl Odometry {
 
     /// Holds the delayed records up to time `until`.
     fn release(&mut self, until: f64, correction: Correction) {
-        while let Some(&(t, v, yaw_rate, steer)) = self.delayed.front() {
-            if t > until {
+        while let Some(&d) = self.delayed.front() {
+            if d.t > until {
                 break;
             }
             self.delayed.pop_front();
-            self.hold(t, v, yaw_rate, steer, correction);
+            self.hold(d.t, d.speeds, d.yaw_rate, d.steer, correction);
         }
     }
 
-    fn hold(&mut self, t: f64, v: f64, yaw_rate: f64, steer: Option<f64>, correction: Correction) {
+    fn hold(
+        &mut self,
+        t: f64,
+        (v, vy): (f64, Option<f64>),
+        yaw_rate: f64,
+        steer: Option<f64>,
+        correction: Correction,
+    ) {
         self.advance(t, correction);
         let omega = match (self.model, steer) {
             (MotionModel::Bicycle { wheelbase }, Some(s)) => v * s.tan() / wheelbase,
             _ => yaw_rate,
         };
-        self.held = Some((v, omega));
+        self.held = Some((v, omega, vy));
         self.time = Some(t);
     }
 
     /// Integrates the held record up to time `t`, corrected by `correction`.
     pub fn advance(&mut self, t: f64, correction: Correction) {
-        let (Some((v, omega)), Some(t0)) = (self.held, self.time) else {
+        let (Some((v, omega, vy)), Some(t0)) = (self.held, self.time) else {
             return;
         };
         let dt = t - t0;
         if dt <= 0.0 || !dt.is_finite() {
             return;
         }
-        let (v, omega) = (v * correction.speed_scale, omega - correction.yaw_rate_bias);
+        let omega = omega - correction.yaw_rate_bias;
+        // The velocity's angle off the heading: measured, or the sideslip of
+        // the lateral acceleration.
+        let (v, slip) = match vy {
+            Some(vy) => (v.hypot(vy) * correction.speed_scale, vy.atan2(v)),
+            None => {
+                let v = v * correction.speed_scale;
+                (v, correction.sideslip * v * omega)
+            }
+        };
         let mut step = integrate(&SE2::identity(), v, omega, dt);
-        let slip = correction.sideslip * v * omega;
         if slip != 0.0 {
             step.t = SE2::new(0.0, 0.0, slip).rotation() * step.t;
         }
@@ -414,7 +444,7 @@ mod tests {
             for k in 0..=steps {
                 odometry.record(
                     k as f64 * seconds / steps as f64,
-                    5.0,
+                    (5.0, None),
                     omega,
                     None,
                     Correction::NONE,
@@ -452,7 +482,7 @@ mod tests {
         for k in 0..=50 {
             let t = k as f64 * 0.02;
             let v = if t < 0.97 { 2.0 } else { 4.0 };
-            late.record(t, v, 0.5, None, Correction::NONE);
+            late.record(t, (v, None), 0.5, None, Correction::NONE);
         }
         let measured = late.advance_to_scan(1.0, Correction::NONE);
         assert!((measured - 0.95).abs() < 1e-12);
@@ -475,7 +505,7 @@ mod tests {
         // Without latency the same records reach the stamp.
         let mut prompt = constant_turn(0.0);
         for k in 0..=50 {
-            prompt.record(k as f64 * 0.02, 2.0, 0.5, None, Correction::NONE);
+            prompt.record(k as f64 * 0.02, (2.0, None), 0.5, None, Correction::NONE);
         }
         assert_eq!(prompt.advance_to_scan(1.0, Correction::NONE), 1.0);
         let expected = integrate(&SE2::identity(), 2.0, 0.5, 1.0);
@@ -491,8 +521,8 @@ mod tests {
         let (mut straight, mut sliding) = (constant_turn(0.0), constant_turn(0.0));
         for k in 0..=100 {
             let t = k as f64 * 0.01;
-            straight.record(t, 5.0, 0.8, None, Correction::NONE);
-            sliding.record(t, 5.0, 0.8, None, slide);
+            straight.record(t, (5.0, None), 0.8, None, Correction::NONE);
+            sliding.record(t, (5.0, None), 0.8, None, slide);
         }
         let (a, _) = straight.take();
         let (b, _) = sliding.take();
@@ -501,5 +531,18 @@ mod tests {
         let turned = a.t.perp(&b.t).atan2(a.t.dot(&b.t));
         assert!((turned - 0.04).abs() < 1e-9, "{turned}");
         assert!((a.t.norm() - b.t.norm()).abs() < 1e-9);
+        // A measured lateral speed of the same slide moves the car alike,
+        // whatever sideslip the correction says.
+        let mut measured = constant_turn(0.0);
+        let vy = 5.0 * (0.04f64).sin();
+        let speed = 5.0 * (0.04f64).cos();
+        for k in 0..=100 {
+            measured.record(k as f64 * 0.01, (speed, Some(vy)), 0.8, None, slide);
+        }
+        let (c, _) = measured.take();
+        assert!(
+            (c.to_vector() - b.to_vector()).norm() < 1e-9,
+            "{c:?} vs {b:?}"
+        );
     }
 }

@@ -340,9 +340,11 @@ impl Estimator for Clustered {
                 let cones = self.detections(*t, points);
                 self.inner.process(&Record::Cones { t: *t, cones });
             }
-            Record::Odom { t, v, yaw_rate, .. } => {
+            Record::Odom {
+                t, v, yaw_rate, vy, ..
+            } => {
                 self.motion
-                    .record(*t, *v, *yaw_rate, None, Correction::NONE);
+                    .record(*t, (*v, *vy), *yaw_rate, None, Correction::NONE);
                 self.inner.process(record);
             }
             _ => self.inner.process(record),

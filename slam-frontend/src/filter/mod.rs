@@ -211,10 +211,10 @@ impl Run {
                 v,
                 yaw_rate,
                 steer,
-                ..
+                vy,
             } => {
                 self.motion
-                    .record(*t, *v, *yaw_rate, *steer, Correction::NONE);
+                    .record(*t, (*v, *vy), *yaw_rate, *steer, Correction::NONE);
                 None
             }
             Record::Cones { t, cones } => {

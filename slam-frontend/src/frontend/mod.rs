@@ -291,10 +291,11 @@ impl GraphSlam {
                 v,
                 yaw_rate,
                 steer,
-                ..
+                vy,
             } => {
                 let correction = self.calibration.correction();
-                self.motion.record(*t, *v, *yaw_rate, *steer, correction);
+                self.motion
+                    .record(*t, (*v, *vy), *yaw_rate, *steer, correction);
             }
             Record::Cones { t, cones } => {
                 // A `start` record once the run has begun is ignored.
