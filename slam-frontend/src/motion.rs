@@ -84,9 +84,9 @@ impl Correction {
 /// (α₃) and 0.4 mrad in heading (α₂); α₁ and α₄ cover turning.
 pub const DEFAULT_ALPHA: [f64; 4] = [1e-3, 1.6e-5, 2.5e-3, 1e-4];
 
-/// An odometry record waiting for the scan measured after it.
+/// An odometry record, as held or waiting for the scan measured after it.
 #[derive(Clone, Copy, Debug)]
-struct Delayed {
+struct Reading {
     t: f64,
     speeds: (f64, Option<f64>),
     yaw_rate: f64,
@@ -118,7 +118,7 @@ pub struct Odometry {
     scan_latency: f64,
     /// Records newer than the latest scan's moment of measurement could
     /// be: integrated once a later scan needs them.
-    delayed: VecDeque<Delayed>,
+    delayed: VecDeque<Reading>,
 }
 
 impl Odometry {
@@ -158,16 +158,17 @@ impl Odometry {
         steer: Option<f64>,
         correction: Correction,
     ) {
+        let reading = Reading {
+            t,
+            speeds: (v, vy),
+            yaw_rate,
+            steer,
+        };
         if self.scan_latency > 0.0 {
             self.release(t - self.scan_latency, correction);
-            self.delayed.push_back(Delayed {
-                t,
-                speeds: (v, vy),
-                yaw_rate,
-                steer,
-            });
+            self.delayed.push_back(reading);
         } else {
-            self.hold(t, (v, vy), yaw_rate, steer, correction);
+            self.hold(reading, correction);
         }
     }
 
@@ -188,25 +189,20 @@ impl Odometry {
                 break;
             }
             self.delayed.pop_front();
-            self.hold(d.t, d.speeds, d.yaw_rate, d.steer, correction);
+            self.hold(d, correction);
         }
     }
 
-    fn hold(
-        &mut self,
-        t: f64,
-        (v, vy): (f64, Option<f64>),
-        yaw_rate: f64,
-        steer: Option<f64>,
-        correction: Correction,
-    ) {
-        self.advance(t, correction);
-        let omega = match (self.model, steer) {
+    /// Integrates up to the reading's time, then holds it.
+    fn hold(&mut self, reading: Reading, correction: Correction) {
+        self.advance(reading.t, correction);
+        let (v, vy) = reading.speeds;
+        let omega = match (self.model, reading.steer) {
             (MotionModel::Bicycle { wheelbase }, Some(s)) => v * s.tan() / wheelbase,
-            _ => yaw_rate,
+            _ => reading.yaw_rate,
         };
         self.held = Some((v, omega, vy));
-        self.time = Some(t);
+        self.time = Some(reading.t);
     }
 
     /// Integrates the held record up to time `t`, corrected by `correction`.

@@ -52,8 +52,6 @@ pub struct EkfSlam {
     gain: DMatrix<f64>,
     /// The bias's random walk (rad/s/√s).
     bias_walk: f64,
-    /// The time of the last scan.
-    last_scan: Option<f64>,
 }
 
 impl EkfSlam {
@@ -84,7 +82,6 @@ impl EkfSlam {
             pht: DMatrix::zeros(capacity, 2),
             gain: DMatrix::zeros(capacity, 2),
             bias_walk: walk,
-            last_scan: None,
         }
     }
 
@@ -167,8 +164,8 @@ impl EkfSlam {
                 .fixed_rows_mut::<3>(0)
                 .copy_from(&self.run.start.to_vector());
         }
-        let dt = self.last_scan.map_or(0.0, |last| (t - last).max(0.0));
-        self.last_scan = Some(t);
+        // Every scan leaves a pose: the last one's time is the last scan's.
+        let dt = self.poses.last().map_or(0.0, |last| (t - last.t).max(0.0));
         self.predict_motion(dt);
         match self.run.place(&self.pose(), cones) {
             Err(()) => {
