@@ -280,6 +280,7 @@ impl FastSlam {
                 max_shift: align::BASE_SHIFT,
             },
         )
+        .and_then(|r| r.anchored())
     }
 
     /// Moves a particle to `place` at a loop closure. The landmarks it made

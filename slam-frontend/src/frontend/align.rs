@@ -77,6 +77,11 @@ impl Placement {
 /// the chosen fit must beat every fit more than half a spacing away by
 /// [`MARGIN`] and put as many of those big orange cones on theirs;
 /// otherwise the scan is ambiguous and `None` waits for the next one.
+///
+/// Without the start line, a larger correction that is clearly the best
+/// fit anywhere comes back [`Recognised::Unconfirmed`]: a row's shape hides
+/// a fit one spacing off only where the row is regular, so the caller takes
+/// it once it recurs scan after scan.
 pub fn recognise(
     old: &[(Vector2<f64>, Color)],
     detections: &[Detection],
@@ -84,7 +89,7 @@ pub fn recognise(
     pose: &SE2,
     needed: usize,
     reach: Reach,
-) -> Option<SE2> {
+) -> Option<Recognised> {
     if old.len() < needed {
         return None;
     }
@@ -92,25 +97,61 @@ pub fn recognise(
     let anchored = |f: &Fit| {
         pose.between(&f.pose).t.norm() <= reach.unambiguous || f.start_line >= START_LINE_INLIERS
     };
-    let best = fits
-        .iter()
-        .filter(|f| anchored(f))
-        .max_by(|a, b| a.score.total_cmp(&b.score))?;
     let distinct = 0.5 * spacing(old);
-    let elsewhere = || {
-        fits.iter()
-            .filter(|f| (f.pose.t - best.pose.t).norm() > distinct)
+    let clear = |best: &Fit| {
+        let elsewhere = || {
+            fits.iter()
+                .filter(|f| (f.pose.t - best.pose.t).norm() > distinct)
+        };
+        let rival = elsewhere().map(|f| f.score).max_by(f64::total_cmp);
+        // The start line's big orange cones are few: a fit elsewhere that puts
+        // more of them on theirs says the best fit is one spacing off, even
+        // when clutter and the prior give the best fit more (eufs_rand, `hard`
+        // seed 29: 6 detections 0.6 m from the estimate against 3 and two big
+        // orange ones 2.5 m away; taken, the loop closed 3.8 m off and the
+        // run ended 22 m off).
+        let start_line_elsewhere = elsewhere().any(|f| f.start_line > best.start_line);
+        rival.is_none_or(|r| best.score - r >= MARGIN)
+            && !start_line_elsewhere
+            && best.inliers >= needed
     };
-    let rival = elsewhere().map(|f| f.score).max_by(f64::total_cmp);
-    // The start line's big orange cones are few: a fit elsewhere that puts
-    // more of them on theirs says the best fit is one spacing off, even
-    // when clutter and the prior give the best fit more (eufs_rand, `hard`
-    // seed 29: 6 detections 0.6 m from the estimate against 3 and two big
-    // orange ones 2.5 m away; taken, the loop closed 3.8 m off and the
-    // run ended 22 m off).
-    let start_line_elsewhere = elsewhere().any(|f| f.start_line > best.start_line);
-    let clear = rival.is_none_or(|r| best.score - r >= MARGIN) && !start_line_elsewhere;
-    (clear && best.inliers >= needed).then_some(best.pose)
+    let best_clear = |anchored_only: bool| {
+        fits.iter()
+            .filter(|f| !anchored_only || anchored(f))
+            .max_by(|a, b| a.score.total_cmp(&b.score))
+            .filter(|f| clear(f))
+    };
+    if let Some(best) = best_clear(true) {
+        return Some(Recognised::Anchored(best.pose));
+    }
+    best_clear(false).map(|f| Recognised::Unconfirmed(f.pose))
+}
+
+/// A place [`recognise`] found: the car's pose there.
+#[derive(Clone, Copy, Debug)]
+pub enum Recognised {
+    /// Within half a spacing of the estimate, or confirmed by the start
+    /// line.
+    Anchored(SE2),
+    /// Further off, and only the best fit of this scan.
+    Unconfirmed(SE2),
+}
+
+impl Recognised {
+    /// The pose, anchored or not.
+    pub fn pose(&self) -> SE2 {
+        match self {
+            Recognised::Anchored(p) | Recognised::Unconfirmed(p) => *p,
+        }
+    }
+
+    /// The pose if it is anchored.
+    pub fn anchored(&self) -> Option<SE2> {
+        match self {
+            Recognised::Anchored(p) => Some(*p),
+            Recognised::Unconfirmed(_) => None,
+        }
+    }
 }
 
 /// Big orange detections on big orange landmarks that anchor a large
@@ -390,7 +431,7 @@ mod tests {
         truth: &SE2,
         drifted: &SE2,
         unambiguous: f64,
-    ) -> Option<SE2> {
+    ) -> Option<Recognised> {
         let detections = scan(map, truth);
         recognise(
             map,
@@ -410,9 +451,9 @@ mod tests {
         }
     }
 
-    fn assert_same(found: Option<SE2>, truth: &SE2) {
-        let Some(found) = found else {
-            panic!("not recognised, expected {truth:?}");
+    fn assert_same(found: Option<Recognised>, truth: &SE2) {
+        let Some(Recognised::Anchored(found)) = found else {
+            panic!("not anchored ({found:?}), expected {truth:?}");
         };
         assert!((found.t - truth.t).norm() < 1e-6, "{found:?}");
         assert!((found.theta - truth.theta).abs() < 1e-6, "{found:?}");

@@ -8,10 +8,20 @@ use crate::color::Color;
 use crate::log::Detection;
 use crate::sighting::{START_AREA, View, near_start};
 use cairn_core::SE2;
+use cairn_core::se2::normalize_angle;
 use nalgebra::{Matrix2, Matrix3, Vector2};
 
 /// How far back the landmarks of [`GraphSlam::recent_submap`] were made (m).
 const RECENT: f64 = 40.0;
+
+/// Scans that must find the same correction beyond half a cone spacing,
+/// without the start line to anchor it, before it is taken.
+const CONFIRM_SCANS: usize = 5;
+
+/// Corrections of the pose closer than this (m, rad) are the same: the
+/// drift changes little from scan to scan, and a fit one spacing off is
+/// metres away.
+const SAME_CORRECTION: (f64, f64) = (1.0, 0.1);
 
 /// A scan kept to be matched again later (near the start until the loop
 /// closes, every scan until the end of the run, scans waiting for
@@ -58,6 +68,17 @@ impl GraphSlam {
             && self.closed_at.is_none()
             && self.landmarks[l].sighting.view == View::Left
             && self.is_start_area(l)
+    }
+
+    /// Whether a start-area landmark waiting for the loop to close is
+    /// within the sensor's reach.
+    pub(super) fn start_area_in_reach(&self) -> bool {
+        let reach = self.config.max_range + 5.0;
+        (0..self.landmarks.len()).any(|l| {
+            self.in_map(l)
+                && self.awaits_loop_closure(l)
+                && (self.landmarks[l].mean - self.pose.t).norm() < reach
+        })
     }
 
     /// Drift can put returning landmarks outside the association gates, so
@@ -122,7 +143,19 @@ impl GraphSlam {
                     .max(recent.len().min(old.len()) / 2);
                 align::recognise(&map, &recent, &recent, &self.pose, needed, reach)
             });
-        let Some(aligned) = found else {
+        let Some(found) = found else {
+            return false;
+        };
+        // Where the start line was mapped, it anchors the large corrections.
+        let start_line = (0..self.landmarks.len()).any(|l| {
+            self.in_map(l)
+                && self.landmarks[l].sighting.created_distance < START_AREA
+                && self.landmarks[l].sighting.color() == Color::BigOrange
+        });
+        if start_line && found.anchored().is_none() {
+            return false;
+        }
+        let Some(aligned) = self.confirm(found) else {
             return false;
         };
         for (i, d) in cones.iter().enumerate() {
@@ -158,8 +191,46 @@ impl GraphSlam {
         true
     }
 
+    /// The pose of a recognised place once it may be taken. Each scan's
+    /// clear best fit votes for a correction of the pose; a correction
+    /// beyond half a spacing is taken with [`CONFIRM_SCANS`] votes and more
+    /// than twice those of any other. An anchored fit is taken at once
+    /// unless other corrections have votes: then the drift may exceed half
+    /// a spacing, and a fit one spacing off passes for anchored.
+    fn confirm(&mut self, found: align::Recognised) -> Option<SE2> {
+        let pose = found.pose();
+        let correction = pose.compose(&self.pose.inverse());
+        let same = |c: &SE2| {
+            (c.t - correction.t).norm() < SAME_CORRECTION.0
+                && normalize_angle(c.theta - correction.theta).abs() < SAME_CORRECTION.1
+        };
+        let others = self
+            .place_votes
+            .iter()
+            .filter(|v| !same(&v.0))
+            .map(|v| v.1)
+            .max()
+            .unwrap_or(0);
+        if found.anchored().is_some() && others == 0 {
+            return Some(pose);
+        }
+        let votes = match self.place_votes.iter_mut().find(|v| same(&v.0)) {
+            Some(v) => {
+                *v = (correction, v.1 + 1);
+                v.1
+            }
+            None => {
+                self.place_votes.push((correction, 1));
+                1
+            }
+        };
+        (votes >= CONFIRM_SCANS && votes > 2 * others).then_some(pose)
+    }
+
     /// The landmarks mapped in the last [`RECENT`] metres of this lap near
-    /// the car, as the car sees them.
+    /// the car, as the car sees them, since it came back near the start:
+    /// those of the lap's end before it stand where no old landmark is, and
+    /// counted, they favour fits that shift the car along the start row.
     fn recent_submap(&self) -> Vec<Detection> {
         let reach = self.config.max_range + 5.0;
         let distance = self.motion.distance();
@@ -169,6 +240,9 @@ impl GraphSlam {
                 let lm = &self.landmarks[l];
                 self.in_map(l)
                     && lm.sighting.created_distance >= START_AREA
+                    && self
+                        .returned_at
+                        .is_some_and(|d| lm.sighting.created_distance >= d)
                     && distance - lm.sighting.created_distance < RECENT
                     && (lm.mean - self.pose.t).norm() < reach
             })
@@ -289,6 +363,7 @@ impl GraphSlam {
     pub(super) fn close_loop(&mut self) {
         self.loop_closures += 1;
         self.closed_at = Some(self.motion.distance());
+        self.place_votes.clear();
         if let Err(e) = self.optimise(super::optimise::Batch::loop_closure(
             self.matches_in_hindsight(),
         )) {

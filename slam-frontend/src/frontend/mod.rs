@@ -115,11 +115,16 @@ pub struct GraphSlam {
     loop_closures: usize,
     /// Distance driven at the last loop closure.
     closed_at: Option<f64>,
+    /// Corrections of the pose that place recognition found near the start,
+    /// and in how many scans each was the clear best.
+    place_votes: Vec<(SE2, usize)>,
     calibration: Calibration,
     timing: Timing,
     window: window::Window,
     /// Scans near the start before the loop closed, matched again once it has.
     near_start_scans: Vec<loop_closure::PendingScan>,
+    /// Distance driven when the car came back near the start.
+    returned_at: Option<f64>,
     /// Every scan placed on the map, matched again by [`GraphSlam::finish`]
     /// (a few kB per second of driving).
     scan_log: Vec<loop_closure::PendingScan>,
@@ -168,10 +173,12 @@ impl GraphSlam {
             placement: align::Placement::default(),
             loop_closures: 0,
             closed_at: None,
+            place_votes: Vec::new(),
             calibration: Calibration::default(),
             timing: Timing::default(),
             window,
             near_start_scans: Vec::new(),
+            returned_at: None,
             scan_log: Vec::new(),
             warnings: Vec::new(),
             colors,
@@ -456,10 +463,16 @@ impl GraphSlam {
         self.count_misses(&pose, &associated, scan);
         // A lap ends near where it began; a parallel stretch of track that
         // passes the start area elsewhere must not count.
-        if !self.back_at_start(&pose) {
+        // Once back, recognition goes on while the start area is in view:
+        // a correction beyond half a spacing needs scans to confirm it.
+        let still = !self.near_start_scans.is_empty() && self.start_area_in_reach();
+        if !self.back_at_start(&pose) && !still {
             self.near_start_scans.clear();
+            self.place_votes.clear();
+            self.returned_at = None;
             return;
         }
+        self.returned_at.get_or_insert(self.motion.distance());
         self.near_start_scans.push(loop_closure::PendingScan {
             keyframe,
             first,
