@@ -72,6 +72,15 @@ impl GraphSlam {
             && self.is_start_area(l)
     }
 
+    /// Whether the start area has big orange cones in the map.
+    pub(super) fn start_line_mapped(&self) -> bool {
+        (0..self.landmarks.len()).any(|l| {
+            self.in_map(l)
+                && self.landmarks[l].sighting.created_distance < START_AREA
+                && self.landmarks[l].sighting.color() == Color::BigOrange
+        })
+    }
+
     /// Whether a start-area landmark waiting for the loop to close is
     /// within the sensor's reach.
     pub(super) fn start_area_in_reach(&self) -> bool {
@@ -96,11 +105,8 @@ impl GraphSlam {
     ) -> bool {
         let reach = self.config.max_range + 5.0;
         // Where the start line was mapped, it anchors the large corrections.
-        let start_line = (0..self.landmarks.len()).any(|l| {
-            self.in_map(l)
-                && self.landmarks[l].sighting.created_distance < START_AREA
-                && self.landmarks[l].sighting.color() == Color::BigOrange
-        });
+        let start_line = self.start_line_mapped();
+        let usable = |r: align::Recognised| (!start_line || r.anchored().is_some()).then_some(r);
         let old: Vec<usize> = (0..self.landmarks.len())
             .filter(|&l| {
                 self.in_map(l)
@@ -142,21 +148,19 @@ impl GraphSlam {
         // Where drift put the car's estimate more than a gate away, the
         // lap's end has mapped the start area again: its landmarks, each
         // placed by many sightings, are aligned when the scan alone is not.
-        let found =
-            align::recognise(&map, cones, &unexplained, &self.pose, needed, reach).or_else(|| {
+        let found = align::recognise(&map, cones, &unexplained, &self.pose, needed, reach)
+            .and_then(usable)
+            .or_else(|| {
                 let recent = self.recent_submap(start_line);
                 let needed = self
                     .config
                     .loop_min_returned
                     .max(recent.len().min(old.len()) / 2);
-                align::recognise(&map, &recent, &recent, &self.pose, needed, reach)
+                align::recognise(&map, &recent, &recent, &self.pose, needed, reach).and_then(usable)
             });
         let Some(found) = found else {
             return false;
         };
-        if start_line && found.anchored().is_none() {
-            return false;
-        }
         let Some(aligned) = self.confirm(found) else {
             return false;
         };
