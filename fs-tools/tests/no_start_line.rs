@@ -43,6 +43,12 @@ fn run_on(
     run_and_score(&sim, config)
 }
 
+/// Takes the start line's big orange cones off `track`.
+fn without_big_orange_cones(track: &mut Track, course: &mut Course) {
+    track.cones.retain(|c| c.color != Color::BigOrange);
+    *course = Course::from_track(track).expect("the track stays valid");
+}
+
 fn assert_closed(slam: &GraphSlam, report: &Report) {
     assert_eq!(slam.loop_closures(), 1, "{report:?}");
     assert!(report.association_accuracy > 0.99, "{report:?}");
@@ -56,10 +62,7 @@ fn a_track_without_big_orange_cones_closes_its_loop() {
     let (slam, report) = run_on(
         random_track(0, &TrackRules::default()),
         303,
-        |track, course| {
-            track.cones.retain(|c| c.color != Color::BigOrange);
-            *course = Course::from_track(track).expect("the track stays valid");
-        },
+        without_big_orange_cones,
     );
     assert_closed(&slam, &report);
 }
@@ -88,9 +91,6 @@ fn the_start_area_seen_from_afar_does_not_close_the_loop_off() {
     let file = dir.join("eufs_hairpins_increasing_difficulty.csv");
     let track = Track::load(&file).expect("the shared track reads");
     let course = Course::from_track(&track).expect("it has a course");
-    let (slam, report) = run_on((track, course), 100, |track, course| {
-        track.cones.retain(|c| c.color != Color::BigOrange);
-        *course = Course::from_track(track).expect("the track stays valid");
-    });
+    let (slam, report) = run_on((track, course), 100, without_big_orange_cones);
     assert_closed(&slam, &report);
 }
