@@ -58,6 +58,7 @@ fn simulate_map_and_evaluate_a_random_track() {
         "; loop closure ",
         "; final optimisation ",
         "odometry learnt: speed ×",
+        "gyro bias walk ",
     ] {
         assert!(summary.contains(part), "{part:?} missing from {summary}");
     }
@@ -70,6 +71,9 @@ fn simulate_map_and_evaluate_a_random_track() {
     assert!(slide.abs() < 0.003, "{learnt}");
     let scale = learnt["speed_scale"].as_f64().unwrap();
     assert!((scale - 1.0 / 1.01).abs() < 0.01, "{learnt}");
+    // Its gyro's bias holds: the walk stays the one assumed.
+    let walk = learnt["yaw_rate_bias_walk"].as_f64().unwrap();
+    assert_eq!(walk, 1e-5, "{learnt}");
     let plot = dir.join("plot.svg");
     let o = cairn(&[
         "fs-eval",

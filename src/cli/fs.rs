@@ -411,6 +411,7 @@ pub fn run_slam(a: SlamArgs) -> Result<(), super::CliError> {
                 "speed_scale": c.speed_scale,
                 "yaw_rate_bias": c.yaw_rate_bias,
                 "sideslip": c.sideslip,
+                "yaw_rate_bias_walk": c.yaw_rate_bias_walk,
             })
         }),
     })
@@ -453,8 +454,8 @@ pub fn run_slam(a: SlamArgs) -> Result<(), super::CliError> {
     }
     if let Some(c) = slam.calibration() {
         eprintln!(
-            "odometry learnt: speed ×{:.4}, sideslip {:.4} rad per m/s² of lateral acceleration",
-            c.speed_scale, c.sideslip
+            "odometry learnt: speed ×{:.4}, sideslip {:.4} rad per m/s² of lateral acceleration, gyro bias walk {:.1e} rad/s/√s",
+            c.speed_scale, c.sideslip, c.yaw_rate_bias_walk
         );
     }
     Ok(())

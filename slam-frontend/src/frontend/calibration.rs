@@ -17,6 +17,9 @@ pub struct Calibration {
     pub yaw_rate_bias: f64,
     /// Sideslip per lateral acceleration (rad per m/s²), as [`Correction::sideslip`].
     pub sideslip: f64,
+    /// The random walk of the yaw-rate bias (rad/s/√s): the config's, or
+    /// more where the loop's headings showed the bias wandering faster.
+    pub yaw_rate_bias_walk: f64,
     /// Σ slip angle × lateral acceleration and Σ lateral acceleration² over
     /// the scans (with the prior): the sideslip is their least-squares ratio.
     slip_moment: f64,
@@ -29,6 +32,7 @@ impl Default for Calibration {
             speed_scale: 1.0,
             yaw_rate_bias: 0.0,
             sideslip: 0.0,
+            yaw_rate_bias_walk: 0.0,
             slip_moment: 0.0,
             slip_weight: SIDESLIP_PRIOR,
         }

@@ -6,6 +6,7 @@
 pub(crate) mod align;
 pub mod association;
 mod bias;
+mod bias_walk;
 mod calibration;
 mod candidates;
 mod config;
@@ -148,6 +149,8 @@ impl GraphSlam {
     pub fn new(config: FrontEndConfig) -> Self {
         let window = window::Window::new(config.yaw_rate_sigma);
         let colors = ColorRate::new(&config);
+        let mut calibration = Calibration::default();
+        calibration.yaw_rate_bias_walk = config.yaw_rate_bias_walk;
         let assumed_noise = [
             config.range_sigma,
             config.range_sigma_relative,
@@ -174,7 +177,7 @@ impl GraphSlam {
             loop_closures: 0,
             closed_at: None,
             place_votes: Vec::new(),
-            calibration: Calibration::default(),
+            calibration,
             timing: Timing::default(),
             window,
             near_start_scans: Vec::new(),
