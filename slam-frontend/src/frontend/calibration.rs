@@ -5,7 +5,8 @@ use cairn_core::SE2;
 use nalgebra::{Matrix3, Vector2};
 
 /// Odometry corrections learnt online from the landmark-corrected poses:
-/// a speed scale, a yaw-rate bias and the sideslip. The presets' 1–3% speed
+/// a speed scale, a yaw-rate bias and the sideslip; and how fast the bias
+/// wanders, learnt from the full optimisations. The presets' 1–3% speed
 /// bias and 0.002–0.01 rad/s yaw-rate bias would otherwise bend and stretch
 /// the map more than the odometry covariance admits, and a car that slides
 /// outward in every left turn drifts as if its gyro were biased.
