@@ -64,9 +64,30 @@ fn a_detector_twice_as_noisy_as_assumed_keeps_its_matches() {
     let ratio = noise.estimated[2] / noise.assumed[2];
     assert!((1.6..3.0).contains(&ratio), "{ratio}");
     assert_eq!(slam.loop_closures(), 1);
-    // Without learning, far detections fall outside the gates: 91.9%.
-    let (_, fixed) = noisier(2.0, false);
-    assert!(fixed.association_accuracy < 0.95, "{fixed:?}");
+    // Without learning, far detections fall outside the gates while
+    // driving (91.9% before the end-of-run matching could widen them); the
+    // end of the run matches them again at the noise the map shows.
+    let (slam, fixed) = noisier(2.0, false);
+    println!("not learned: {fixed:?}");
+    let real_time = fixed.association_accuracy_real_time.expect("scored");
+    assert!(real_time < 0.95, "{fixed:?}");
+    assert!(fixed.association_accuracy > 0.99, "{fixed:?}");
+    assert!(
+        slam.warnings().iter().any(|w| w.contains("times as noisy")),
+        "{:?}",
+        slam.warnings()
+    );
+}
+
+#[test]
+fn a_detector_as_noisy_as_assumed_is_matched_at_its_noise_to_the_end() {
+    let (slam, report) = noisier(1.0, false);
+    assert!(report.association_accuracy > 0.999, "{report:?}");
+    assert!(
+        !slam.warnings().iter().any(|w| w.contains("times as noisy")),
+        "{:?}",
+        slam.warnings()
+    );
 }
 
 #[test]

@@ -278,6 +278,7 @@ impl GraphSlam {
         let mut result = self.optimise(optimise::Batch::last(!hindsight));
         self.drop_clutter();
         if hindsight && result.is_ok() {
+            self.widen_noise_to_residuals();
             self.drop_surplus_landmarks();
             self.associate_in_hindsight(&scans, gate);
             result = self.optimise(optimise::Batch::last(true));
