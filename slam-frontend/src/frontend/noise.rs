@@ -15,9 +15,8 @@ use nalgebra::Matrix2;
 /// Matched detections per estimate.
 const WINDOW: usize = 400;
 
-/// The percentile it reads, and that of χ² with 2 degrees of freedom
-/// there: −2 ln(1 − 0.9).
-const PERCENTILE: usize = WINDOW * 9 / 10;
+/// The 90th percentile of χ² with 2 degrees of freedom, −2 ln(1 − 0.9),
+/// which [`variance_scale`] reads the χ² values against.
 const CHI2_2_AT_PERCENTILE: f64 = 4.605_170_185_988_091;
 
 /// The largest change of the variance per estimate (a factor 2 either way),
@@ -80,10 +79,7 @@ impl NoiseLearner {
         self.scratch.clear();
         self.scratch.extend_from_slice(&self.nis);
         self.nis.clear();
-        let (_, at, _) = self
-            .scratch
-            .select_nth_unstable_by(PERCENTILE, f64::total_cmp);
-        let step = (*at / CHI2_2_AT_PERCENTILE).clamp(1.0 / MAX_STEP, MAX_STEP);
+        let step = variance_scale(&mut self.scratch).clamp(1.0 / MAX_STEP, MAX_STEP);
         let scale = (self.scale * step).clamp(SCALE.0, SCALE.1);
         let factor = scale / self.scale;
         self.scale = scale;
@@ -132,10 +128,7 @@ impl GraphSlam {
                 .noise
                 .observe(correction * residual.dot(&(inverse * residual)))
             {
-                let k = factor.sqrt();
-                self.config.range_sigma *= k;
-                self.config.range_sigma_relative *= k;
-                self.config.bearing_sigma *= k;
+                self.scale_detector_sigma(factor.sqrt());
             }
         }
     }
@@ -162,18 +155,21 @@ impl GraphSlam {
         if nis.len() < WINDOW {
             return;
         }
-        let at = nis.len() * 9 / 10;
-        let (_, p90, _) = nis.select_nth_unstable_by(at, f64::total_cmp);
-        let scale = (*p90 / CHI2_2_AT_PERCENTILE).min(SCALE.1);
+        let scale = variance_scale(&mut nis).min(SCALE.1);
         if scale > FINAL_RESCALE {
             let k = scale.sqrt();
-            self.config.range_sigma *= k;
-            self.config.range_sigma_relative *= k;
-            self.config.bearing_sigma *= k;
+            self.scale_detector_sigma(k);
             self.warnings.push(format!(
                 "the detections were {k:.1} times as noisy (σ) as assumed; matched again at that noise"
             ));
         }
+    }
+
+    /// Multiplies every part of the detector's σ by `k`.
+    fn scale_detector_sigma(&mut self, k: f64) {
+        self.config.range_sigma *= k;
+        self.config.range_sigma_relative *= k;
+        self.config.bearing_sigma *= k;
     }
 
     /// The detector's noise as configured and as learned so far; `None`
@@ -189,6 +185,14 @@ impl GraphSlam {
             variance_scale: self.noise.scale(),
         })
     }
+}
+
+/// The variance scale that χ² values of 2 degrees of freedom show: their
+/// 90th percentile over χ²₂'s (reorders `nis`, which must not be empty).
+fn variance_scale(nis: &mut [f64]) -> f64 {
+    let at = nis.len() * 9 / 10;
+    let (_, p90, _) = nis.select_nth_unstable_by(at, f64::total_cmp);
+    *p90 / CHI2_2_AT_PERCENTILE
 }
 
 #[cfg(test)]
