@@ -21,6 +21,14 @@ pub struct Calibration {
     /// The random walk of the yaw-rate bias (rad/s/√s): the config's, or
     /// more where the loop's headings showed the bias wandering faster.
     pub yaw_rate_bias_walk: f64,
+    /// How long after it was measured a scan is stamped (s): the config's
+    /// `scan_latency`, or what the end of the run learnt.
+    pub scan_latency: f64,
+    /// The σ (s) to which the end of the run found the log to pin the
+    /// latency, once it has looked (`learn_scan_latency`); the latency is
+    /// learnt only where this is small and the log's differs from the
+    /// config's by several σ.
+    pub scan_latency_sigma: Option<f64>,
     /// Σ slip angle × lateral acceleration and Σ lateral acceleration² over
     /// the scans (with the prior): the sideslip is their least-squares ratio.
     slip_moment: f64,
@@ -34,6 +42,8 @@ impl Default for Calibration {
             yaw_rate_bias: 0.0,
             sideslip: 0.0,
             yaw_rate_bias_walk: 0.0,
+            scan_latency: 0.0,
+            scan_latency_sigma: None,
             slip_moment: 0.0,
             slip_weight: SIDESLIP_PRIOR,
         }

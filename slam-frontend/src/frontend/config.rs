@@ -64,6 +64,14 @@ pub struct FrontEndConfig {
     /// left out shifts the map along the direction of travel by
     /// speed × latency (0.25 m at 5 m/s and 50 ms).
     pub scan_latency: f64,
+    /// Whether the end of the run learns how much later than
+    /// `scan_latency` the scans are stamped
+    /// ([`Calibration::scan_latency`](super::Calibration)). A cone seen at
+    /// different speeds or turn rates shows it: the final optimisation
+    /// estimates the latency beside the poses and moves each pose to the
+    /// moment its scan was measured. On a steady speed and turn (a circle
+    /// driven at one speed) nothing shows it, and the config's value stays.
+    pub learn_scan_latency: bool,
     /// Model odometry noise as Thrun's rotation–translation–rotation with
     /// these α₁…α₄ instead of the speed and yaw-rate σ above.
     #[serde(skip_serializing_if = "Option::is_none")]
@@ -136,6 +144,7 @@ impl Default for FrontEndConfig {
             learn_yaw_rate_bias_walk: true,
             sideslip_sigma: 0.005,
             scan_latency: 0.0,
+            learn_scan_latency: true,
             learn_detector_noise: false,
             gate: 9.21,
             new_landmark_gate: 25.0,

@@ -14,6 +14,7 @@ mod edges;
 pub mod grid;
 mod hindsight;
 mod landmarks;
+mod latency;
 mod loop_closure;
 mod noise;
 mod optimise;
@@ -151,6 +152,7 @@ impl GraphSlam {
         let colors = ColorRate::new(&config);
         let mut calibration = Calibration::default();
         calibration.yaw_rate_bias_walk = config.yaw_rate_bias_walk;
+        calibration.scan_latency = config.scan_latency;
         let assumed_noise = [
             config.range_sigma,
             config.range_sigma_relative,

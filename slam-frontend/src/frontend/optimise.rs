@@ -17,12 +17,17 @@ impl GraphSlam {
     /// one before them) and at most `sightings` sightings per landmark.
     /// Where the solved headings show the gyro's bias wandering more than
     /// twice as fast as assumed, the walk learnt is kept and the graph solved
-    /// again with it.
+    /// again with it. The scan latency is learnt once, in the first solve
+    /// `batch` allows it; a latency the log does not show is solved again
+    /// without.
     pub(super) fn optimise(&mut self, batch: Batch) -> Result<(), OptimiseError> {
         for _ in 0..MAX_SOLVES {
             let used = self.calibration.yaw_rate_bias_walk;
-            self.solve_full(batch)?;
-            if self.calibration.yaw_rate_bias_walk <= RESOLVE_WALK * used {
+            let learn = batch.latency
+                && self.config.learn_scan_latency
+                && self.calibration.scan_latency_sigma.is_none();
+            let kept = self.solve_full(batch, learn)?;
+            if kept && self.calibration.yaw_rate_bias_walk <= RESOLVE_WALK * used {
                 break;
             }
         }
@@ -30,11 +35,13 @@ impl GraphSlam {
     }
 
     /// One full optimisation, after which the bias walk the solution shows is
-    /// learnt.
-    fn solve_full(&mut self, batch: Batch) -> Result<(), OptimiseError> {
+    /// learnt; with `learn_latency`, the scan latency beside the poses.
+    /// Returns whether the solution stands: false where a latency was
+    /// solved for and the log did not show it.
+    fn solve_full(&mut self, batch: Batch, learn_latency: bool) -> Result<bool, OptimiseError> {
         let n = self.poses.len();
         if n == 0 {
-            return Ok(());
+            return Ok(true);
         }
         let stride = batch.stride.max(1);
         // The kept poses: every stride-th and the last.
@@ -51,9 +58,17 @@ impl GraphSlam {
                     .or(self.odometry.last())
                     .map_or(0.0, |o| o.yaw_rate_bias);
                 let pose = self.poses[k].pose;
-                graph.add_vertex(k as i64, PoseBias { pose, bias })?;
+                let latency = 0.0;
+                graph.add_vertex(
+                    k as i64,
+                    PoseBias {
+                        pose,
+                        bias,
+                        latency,
+                    },
+                )?;
             }
-            let start = graph.value::<PoseBias, 4>(0)?;
+            let start = graph.value::<PoseBias, 5>(0)?;
             graph.add_unary_edge(0, StartPrior(start), StartPrior::information())?;
             for pair in kept.windows(2) {
                 let (a, b) = (pair[0], pair[1]);
@@ -80,7 +95,17 @@ impl GraphSlam {
                 graph.add_vertex(v, lm.mean)?;
                 batch.choose(&by_landmark[l], &mut chosen);
                 for o in &chosen {
-                    let edge = SightingBias(EdgeSE2XY::new(o.z));
+                    let (speed, yaw_rate) = if learn_latency {
+                        self.motion_at(o.pose)
+                    } else {
+                        (0.0, 0.0)
+                    };
+                    let sighting = EdgeSE2XY::new(o.z);
+                    let edge = SightingBias {
+                        sighting,
+                        speed,
+                        yaw_rate,
+                    };
                     let e = graph.add_edge(o.pose as i64, v, edge, o.information)?;
                     if batch.robust {
                         graph.set_robust_kernel(e, Some(RobustKernel::Cauchy(CAUCHY_DELTA)));
@@ -104,7 +129,7 @@ impl GraphSlam {
         // A lap that drifted far is linearised far from its optimum, and one
         // step leaves it short: it goes on to `far_iterations`.
         if batch.far_iterations > batch.iterations {
-            let last = graph.value::<PoseBias, 4>(n as i64 - 1)?.pose;
+            let last = graph.value::<PoseBias, 5>(n as i64 - 1)?.pose;
             let shift = self.poses[n - 1].pose.inverse().compose(&last);
             if shift.t.norm() > FAR.0 || shift.theta.abs() > FAR.1 {
                 let mut config = optimizer.config().clone();
@@ -121,16 +146,24 @@ impl GraphSlam {
         let mut moved = SE2::identity();
         for k in 0..n {
             if is_kept(k) {
-                let new = graph.value::<PoseBias, 4>(k as i64)?.pose;
+                let new = graph.value::<PoseBias, 5>(k as i64)?.pose;
                 moved = new.compose(&self.poses[k].pose.inverse());
                 self.poses[k].pose = new;
             } else {
                 self.poses[k].pose = moved.compose(&self.poses[k].pose);
             }
         }
+        let mut stands = true;
+        if learn_latency {
+            let last = n as i64 - 1;
+            let late = graph.value::<PoseBias, 5>(last)?.latency;
+            let marginal = optimizer.marginals(&graph, &[last]);
+            let sigma = marginal.map_or(f64::INFINITY, |m| m[0][(4, 4)].max(0.0).sqrt());
+            stands = self.judge_latency(late, sigma);
+        }
         // The bias the whole lap fits is better than the online estimate
         // (within 3e-4 rad/s on the `standard` preset: slam tests).
-        self.calibration.yaw_rate_bias = graph.value::<PoseBias, 4>(n as i64 - 1)?.bias;
+        self.calibration.yaw_rate_bias = graph.value::<PoseBias, 5>(n as i64 - 1)?.bias;
         self.window.set_bias(self.calibration.yaw_rate_bias, 3e-4);
         for (l, v) in vertex.iter().enumerate() {
             if let Some(v) = v {
@@ -142,7 +175,7 @@ impl GraphSlam {
         }
         self.refold();
         self.merge_duplicates();
-        Ok(())
+        Ok(stands)
     }
 
     /// Learns the bias's random walk from the solved headings of `kept`
@@ -158,8 +191,8 @@ impl GraphSlam {
         };
         let (mut t, mut sum, mut white) = (0.0, 0.0, 0.0);
         for pair in kept.windows(2) {
-            let a = graph.value::<PoseBias, 4>(pair[0] as i64)?;
-            let b = graph.value::<PoseBias, 4>(pair[1] as i64)?;
+            let a = graph.value::<PoseBias, 5>(pair[0] as i64)?;
+            let b = graph.value::<PoseBias, 5>(pair[1] as i64)?;
             let o = OdometryEdge::chain(&self.odometry[pair[0]..pair[1]]);
             // The turn beyond the raw gyro's (the online bias estimate put
             // back); the second differences cancel a constant bias.
@@ -365,6 +398,12 @@ pub(super) struct Batch {
     /// Whether the landmarks take their covariances from the optimised
     /// graph's marginals (the run's last optimisation).
     pub covariances: bool,
+    /// Whether the scan latency is learnt (with the config's
+    /// `learn_scan_latency`): in the run's last optimisation only, once the
+    /// detector's noise has been read from the map (a noise assumed too
+    /// small makes a latency seem certain), and since the sightings then
+    /// move, with nothing left to match them again.
+    pub latency: bool,
 }
 
 /// The Cauchy kernel's δ on the sightings' √χ²: √5.99, the 95% quantile of
@@ -413,6 +452,7 @@ impl Batch {
             far_iterations: 10,
             robust: false,
             covariances: false,
+            latency: false,
         }
     }
 
@@ -427,6 +467,7 @@ impl Batch {
             far_iterations: 10,
             robust: true,
             covariances,
+            latency: covariances,
         }
     }
 }

@@ -215,10 +215,12 @@ impl GraphSlam {
             let a = PoseBias {
                 pose: self.poses[k].pose,
                 bias,
+                latency: 0.0,
             };
             let b = PoseBias {
                 pose: self.poses[k + 1].pose,
                 bias,
+                latency: 0.0,
             };
             let e: Vector3<f64> = edge.error(&a, &b).fixed_rows::<3>(0).into_owned();
             let (j1, j2) = edge.jacobians(&a, &b);
