@@ -275,7 +275,11 @@ fn markdown(a: &MismatchArgs, tracks: &Tracks, runs: &[Run]) -> String {
             100.0 * r.report.association_accuracy
         )
     };
-    let open: Vec<String> = runs.iter().filter(|r| !r.closed).map(|r| describe(&r)).collect();
+    let open: Vec<String> = runs
+        .iter()
+        .filter(|r| !r.closed)
+        .map(|r| describe(&r))
+        .collect();
     // A loop closed at the wrong place, or a lap mapped twice beside a
     // closed loop, shows as association near 50%.
     let astray: Vec<String> = runs

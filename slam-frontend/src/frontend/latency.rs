@@ -31,26 +31,14 @@ const LATENCY_PRECISION: f64 = 0.015;
 const LATENCY_SIGNIFICANCE: f64 = 3.0;
 
 impl GraphSlam {
-    /// The car's speed (m/s) and yaw rate (rad/s) at scan `k`: the
-    /// odometry's mean over the edges before and after it.
+    /// The car's speed (m/s) and yaw rate (rad/s) as it came to scan `k`:
+    /// the odometry's between the scan before and this one. Before the first
+    /// scan the log says nothing, and the car is taken to have stood at its
+    /// start.
     pub(super) fn motion_at(&self, k: usize) -> (f64, f64) {
-        let around = [k.checked_sub(1), Some(k)];
-        let (mut speed, mut yaw_rate, mut count) = (0.0, 0.0, 0.0);
-        for o in around
-            .into_iter()
-            .flatten()
-            .filter_map(|i| self.odometry.get(i))
-        {
-            if o.dt > 0.0 {
-                speed += o.delta.t.x / o.dt;
-                yaw_rate += o.delta.theta / o.dt;
-                count += 1.0;
-            }
-        }
-        if count > 0.0 {
-            (speed / count, yaw_rate / count)
-        } else {
-            (0.0, 0.0)
+        match k.checked_sub(1).and_then(|i| self.odometry.get(i)) {
+            Some(o) if o.dt > 0.0 => (o.delta.t.x / o.dt, o.delta.theta / o.dt),
+            _ => (0.0, 0.0),
         }
     }
 
