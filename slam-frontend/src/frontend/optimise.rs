@@ -138,7 +138,17 @@ impl GraphSlam {
                 optimizer.optimize(&mut graph)?;
             }
         }
-        if batch.covariances {
+        // The latency is judged before the landmarks' covariances are
+        // taken: a solve that does not stand is made again, and takes them.
+        let mut stands = true;
+        if learn_latency {
+            let last = n as i64 - 1;
+            let late = graph.value::<PoseBias, 5>(last)?.latency;
+            let marginal = optimizer.marginals(&graph, &[last]);
+            let sigma = marginal.map_or(f64::INFINITY, |m| m[0][(4, 4)].max(0.0).sqrt());
+            stands = self.judge_latency(late, sigma);
+        }
+        if batch.covariances && stands {
             self.take_marginals(&mut optimizer, &graph, &vertex);
         }
         self.learn_bias_walk(&graph, &kept)?;
@@ -152,14 +162,6 @@ impl GraphSlam {
             } else {
                 self.poses[k].pose = moved.compose(&self.poses[k].pose);
             }
-        }
-        let mut stands = true;
-        if learn_latency {
-            let last = n as i64 - 1;
-            let late = graph.value::<PoseBias, 5>(last)?.latency;
-            let marginal = optimizer.marginals(&graph, &[last]);
-            let sigma = marginal.map_or(f64::INFINITY, |m| m[0][(4, 4)].max(0.0).sqrt());
-            stands = self.judge_latency(late, sigma);
         }
         // The bias the whole lap fits is better than the online estimate
         // (within 3e-4 rad/s on the `standard` preset: slam tests).
