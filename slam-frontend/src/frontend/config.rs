@@ -68,9 +68,10 @@ pub struct FrontEndConfig {
     /// `scan_latency` the scans are stamped
     /// ([`Calibration::scan_latency`](super::Calibration)). A cone seen at
     /// different speeds or turn rates shows it: the final optimisation
-    /// estimates the latency beside the poses and moves each pose to the
-    /// moment its scan was measured. On a steady speed and turn (a circle
-    /// driven at one speed) nothing shows it, and the config's value stays.
+    /// estimates the latency beside the poses and, where the log pins it,
+    /// moves each sighting to what its stamped pose would have seen. On a
+    /// steady speed and turn (a circle driven at one speed) nothing shows
+    /// it, and the config's value stays.
     pub learn_scan_latency: bool,
     /// Model odometry noise as Thrun's rotation–translation–rotation with
     /// these α₁…α₄ instead of the speed and yaw-rate σ above.
