@@ -265,7 +265,7 @@ fn markdown(a: &MismatchArgs, tracks: &Tracks, runs: &[Run]) -> String {
             );
         }
     }
-    let describe = |r: &&Run| {
+    let describe = |r: &Run| {
         format!(
             "{} on {} with {}, seed {} ({:.1}%)",
             r.case.label(),
@@ -275,17 +275,13 @@ fn markdown(a: &MismatchArgs, tracks: &Tracks, runs: &[Run]) -> String {
             100.0 * r.report.association_accuracy
         )
     };
-    let open: Vec<String> = runs
-        .iter()
-        .filter(|r| !r.closed)
-        .map(|r| describe(&r))
-        .collect();
+    let open: Vec<String> = runs.iter().filter(|r| !r.closed).map(describe).collect();
     // A loop closed at the wrong place, or a lap mapped twice beside a
     // closed loop, shows as association near 50%.
     let astray: Vec<String> = runs
         .iter()
         .filter(|r| r.closed && r.report.association_accuracy < ASTRAY)
-        .map(|r| describe(&r))
+        .map(describe)
         .collect();
     for (title, list) in [
         ("Runs whose loop did not close", open),

@@ -23,7 +23,7 @@ impl GraphSlam {
     pub(super) fn optimise(&mut self, batch: Batch) -> Result<(), OptimiseError> {
         for _ in 0..MAX_SOLVES {
             let used = self.calibration.yaw_rate_bias_walk;
-            let learn = batch.latency
+            let learn = batch.covariances
                 && self.config.learn_scan_latency
                 && self.calibration.scan_latency_sigma.is_none();
             let kept = self.solve_full(batch, learn)?;
@@ -398,14 +398,12 @@ pub(super) struct Batch {
     /// large residuals are the lap's drift, which the kernel would keep.
     pub robust: bool,
     /// Whether the landmarks take their covariances from the optimised
-    /// graph's marginals (the run's last optimisation).
-    pub covariances: bool,
-    /// Whether the scan latency is learnt (with the config's
-    /// `learn_scan_latency`): in the run's last optimisation only, once the
+    /// graph's marginals: the run's last optimisation, which also learns the
+    /// scan latency (with the config's `learn_scan_latency`), once the
     /// detector's noise has been read from the map (a noise assumed too
-    /// small makes a latency seem certain), and since the sightings then
-    /// move, with nothing left to match them again.
-    pub latency: bool,
+    /// small makes a latency seem certain) and with nothing left to match
+    /// the moved sightings again.
+    pub covariances: bool,
 }
 
 /// The Cauchy kernel's δ on the sightings' √χ²: √5.99, the 95% quantile of
@@ -454,7 +452,6 @@ impl Batch {
             far_iterations: 10,
             robust: false,
             covariances: false,
-            latency: false,
         }
     }
 
@@ -469,7 +466,6 @@ impl Batch {
             far_iterations: 10,
             robust: true,
             covariances,
-            latency: covariances,
         }
     }
 }
