@@ -89,15 +89,7 @@ impl GraphSlam {
     /// sighting leave the map.
     pub(super) fn associate_in_hindsight(&mut self, scans: &[PendingScan], gate: f64) {
         let chains = self.chains(scans, gate);
-        let mut by_scan: Vec<Vec<(usize, usize)>> = Vec::new();
-        for (c, chain) in chains.iter().enumerate() {
-            for (t, link) in chain.iter().enumerate() {
-                if by_scan.len() <= link.scan {
-                    by_scan.resize_with(link.scan + 1, Vec::new);
-                }
-                by_scan[link.scan].push((c, t));
-            }
-        }
+        let by_scan = links_by_scan(&chains);
         let paths = if self.config.association == AssociationMethod::Tracking {
             chain_paths(&chains, &by_scan)
         } else {
@@ -200,6 +192,20 @@ impl GraphSlam {
         }
         self.refold();
     }
+}
+
+/// Each scan's links, as (chain, position in the chain).
+fn links_by_scan(chains: &[Vec<Link>]) -> Vec<Vec<(usize, usize)>> {
+    let mut by_scan: Vec<Vec<(usize, usize)>> = Vec::new();
+    for (c, chain) in chains.iter().enumerate() {
+        for (t, link) in chain.iter().enumerate() {
+            if by_scan.len() <= link.scan {
+                by_scan.resize_with(link.scan + 1, Vec::new);
+            }
+            by_scan[link.scan].push((c, t));
+        }
+    }
+    by_scan
 }
 
 /// Each chain's most likely landmark sequence, one landmark per detection
@@ -426,24 +432,6 @@ mod tests {
             .collect()
     }
 
-    fn by_scan(chains: &[Vec<Link>]) -> Vec<Vec<(usize, usize)>> {
-        let mut by_scan = vec![
-            Vec::new();
-            chains
-                .iter()
-                .flatten()
-                .map(|l| l.scan + 1)
-                .max()
-                .unwrap_or(0)
-        ];
-        for (c, chain) in chains.iter().enumerate() {
-            for (t, l) in chain.iter().enumerate() {
-                by_scan[l.scan].push((c, t));
-            }
-        }
-        by_scan
-    }
-
     #[test]
     fn a_tracker_that_switches_often_is_learnt_and_its_weak_switches_followed() {
         // Eight chains whose switches are plain, one whose are weak: five
@@ -454,9 +442,9 @@ mod tests {
         let truth: Vec<Option<usize>> = (0..40)
             .map(|t| Some(if (t / 5) % 2 == 0 { 1 } else { 2 }))
             .collect();
-        let alone = settled_paths(&chains[8..], &by_scan(&chains[8..]), ID_SWITCH);
+        let alone = settled_paths(&chains[8..], &links_by_scan(&chains[8..]), ID_SWITCH);
         assert_eq!(alone[0], vec![Some(1); 40]);
-        let paths = chain_paths(&chains, &by_scan(&chains));
+        let paths = chain_paths(&chains, &links_by_scan(&chains));
         assert!(paths.iter().all(|p| *p == truth), "{paths:?}");
         // 7 switches in each of 9 chains of 39 steps, and the prior's one.
         let rate = switch_rate(&paths);
