@@ -1,15 +1,12 @@
-//! Finding where the car is on a known map from one scan: two detections
-//! and two map cones of the same colours and spacing fix a rigid transform;
-//! the one most detections agree with wins.
+//! Finding where the car is on a known map from one scan: the candidate
+//! alignments of [`super::fits`] are weighed against each other and
+//! against the drift the pose may have.
 
-use super::grid::Grid;
+use super::fits::{Fit, INLIER, fits};
 use crate::color::Color;
 use crate::log::Detection;
 use cairn_core::SE2;
 use nalgebra::Vector2;
-
-/// Detections within this distance of a map cone count as agreeing (m).
-const INLIER: f64 = 0.5;
 
 /// Where the car stands on `map`: at `here` if most detections fall on map
 /// cones there, else at the best two-point alignment. Needs three agreeing
@@ -158,127 +155,19 @@ impl Recognised {
 /// correction to the start line.
 const START_LINE_INLIERS: usize = 3;
 
-/// How much better (in agreeing detections plus log-prior) the chosen fit
-/// must be than any fit elsewhere: a cone more, or as many cones and a
-/// drift e times likelier.
+/// How much better (in [`Fit`]'s score: how closely detections fall on
+/// map cones, plus log-prior) the chosen fit must be than any fit
+/// elsewhere: a cone more, or as many as closely and a drift e times
+/// likelier.
 pub const MARGIN: f64 = 1.0;
 
-/// Drift expected at the end of a lap, for weighing a candidate alignment
-/// against the pose estimate: position σ (m) and heading σ (rad).
-const DRIFT: (f64, f64) = (2.0, 0.1);
-
-/// The pose that puts most detections on map cones of a compatible colour,
-/// and how many agree.
+/// The pose that puts detections most closely on map cones of a
+/// compatible colour, and how many agree.
 pub fn align(map: &[(Vector2<f64>, Color)], detections: &[Detection]) -> Option<(SE2, usize)> {
     fits(map, detections, detections, None)
         .into_iter()
         .max_by(|a, b| a.score.total_cmp(&b.score))
         .map(|f| (f.pose, f.inliers))
-}
-
-/// A candidate alignment: the pose, how many detections it puts on map
-/// cones, and its score: that count, plus the start line's big orange
-/// cones again (they are rare, so a fit that places them is unlikely by
-/// chance), plus the log-prior.
-struct Fit {
-    pose: SE2,
-    inliers: usize,
-    /// Inliers that are big orange detections on big orange landmarks.
-    start_line: usize,
-    score: f64,
-}
-
-/// Every alignment that two of the `proposers` and two map cones of
-/// compatible colours and equal spacing propose, scored on `detections`. With a `prior` (pose, largest
-/// shift), only poses within that shift count, and each also pays for its
-/// distance from the prior pose (a Gaussian log-prior with [`DRIFT`] σ).
-fn fits(
-    map: &[(Vector2<f64>, Color)],
-    detections: &[Detection],
-    proposers: &[Detection],
-    prior: Option<(&SE2, f64)>,
-) -> Vec<Fit> {
-    // Log-prior, or None beyond the largest shift.
-    let prior_score = |pose: &SE2| match prior {
-        None => Some(0.0),
-        Some((p, max_shift)) => {
-            let shift = p.between(pose);
-            (shift.t.norm() <= max_shift && shift.theta.abs() <= 0.4).then(|| {
-                -0.5 * ((shift.t.norm() / DRIFT.0).powi(2) + (shift.theta / DRIFT.1).powi(2))
-            })
-        }
-    };
-    // (inliers, of which big orange on big orange). A detection agrees
-    // with the first map cone (in map order) of a compatible colour near
-    // it.
-    let grid = Grid::new(map.iter().map(|(m, _)| *m).collect(), INLIER);
-    let count = |pose: &SE2| {
-        let mut counts = (0, 0);
-        let rotation = pose.rotation();
-        for d in detections {
-            let w = pose.t + rotation * d.position;
-            let first = grid.first_near(&w, INLIER, |i| map[i].1.compatible(d.color));
-            if let Some(i) = first {
-                counts.0 += 1;
-                if d.color == Color::BigOrange && map[i].1 == Color::BigOrange {
-                    counts.1 += 1;
-                }
-            }
-        }
-        counts
-    };
-    // Whether map cone `m` is within the prior's reach of detection `d`:
-    // any pose the prior admits moves d at most the largest shift plus
-    // the 0.4 rad turn at its range (and a two-point fit misses by less
-    // than 0.3 m). Skipping the rest saves most of the pairs on a dense map.
-    let reachable = |d: &Detection, m: &Vector2<f64>| match prior {
-        None => true,
-        Some((p, max_shift)) => {
-            (p.transform_point(&d.position) - m).norm() <= max_shift + 0.4 * d.position.norm() + 0.3
-        }
-    };
-    // The nearest detections are the most precise.
-    let mut near: Vec<&Detection> = proposers.iter().collect();
-    near.sort_by(|a, b| a.position.norm().total_cmp(&b.position.norm()));
-    near.truncate(8);
-    // The map cones each proposer may stand for, in map order.
-    let within: Vec<Vec<usize>> = near
-        .iter()
-        .map(|d| {
-            (0..map.len())
-                .filter(|&i| map[i].1.compatible(d.color) && reachable(d, &map[i].0))
-                .collect()
-        })
-        .collect();
-    let mut fits = Vec::new();
-    for i in 0..near.len() {
-        for j in i + 1..near.len() {
-            let (a, b) = (near[i], near[j]);
-            let dab = (b.position - a.position).norm();
-            if dab < 1.0 {
-                continue;
-            }
-            for &(p, _) in within[i].iter().map(|&k| &map[k]) {
-                for &(q, _) in within[j].iter().map(|&k| &map[k]) {
-                    if ((q - p).norm() - dab).abs() > 0.3 {
-                        continue;
-                    }
-                    let pose = from_two(a.position, b.position, p, q);
-                    let Some(log_prior) = prior_score(&pose) else {
-                        continue;
-                    };
-                    let (inliers, start_line) = count(&pose);
-                    fits.push(Fit {
-                        pose,
-                        inliers,
-                        start_line,
-                        score: (inliers + start_line) as f64 + log_prior,
-                    });
-                }
-            }
-        }
-    }
-    fits
 }
 
 /// Largest correction place recognition should make on `map` (m). A row
@@ -337,17 +226,6 @@ fn spacing(map: &[(Vector2<f64>, Color)]) -> f64 {
     }
     gaps.sort_by(f64::total_cmp);
     gaps[gaps.len() / 2]
-}
-
-/// The rigid transform taking vehicle points a, b onto world points p, q.
-fn from_two(a: Vector2<f64>, b: Vector2<f64>, p: Vector2<f64>, q: Vector2<f64>) -> SE2 {
-    let (u, v) = (b - a, q - p);
-    let theta = v.y.atan2(v.x) - u.y.atan2(u.x);
-    let rot = cairn_core::se2::rotation2(theta);
-    let mid_local = 0.5 * (a + b);
-    let mid_world = 0.5 * (p + q);
-    let t = mid_world - rot * mid_local;
-    SE2::new(t.x, t.y, theta)
 }
 
 #[cfg(test)]

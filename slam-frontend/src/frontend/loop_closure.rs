@@ -39,7 +39,7 @@ pub(super) struct PendingScan {
 }
 
 impl GraphSlam {
-    /// Whether landmark `l` marks the start of the lap ([`Sighting::is_start_area`]).
+    /// Whether landmark `l` marks the start of the lap ([`crate::sighting::Sighting::is_start_area`]).
     pub(super) fn is_start_area(&self, l: usize) -> bool {
         self.landmarks[l]
             .sighting
@@ -148,7 +148,16 @@ impl GraphSlam {
         // Where drift put the car's estimate more than a gate away, the
         // lap's end has mapped the start area again: its landmarks, each
         // placed by many sightings, are aligned when the scan alone is not.
-        let found = align::recognise(&map, cones, &unexplained, &self.pose, needed, reach)
+        // Their covariances weigh them in the fit: far ones are the noisiest.
+        let weighed: Vec<Detection> = cones
+            .iter()
+            .zip(covs)
+            .map(|(c, cov)| Detection {
+                covariance: Some(*cov),
+                ..c.clone()
+            })
+            .collect();
+        let found = align::recognise(&map, &weighed, &unexplained, &self.pose, needed, reach)
             .and_then(usable)
             .or_else(|| {
                 let recent = self.recent_submap(start_line);

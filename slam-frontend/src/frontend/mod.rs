@@ -11,6 +11,7 @@ mod calibration;
 mod candidates;
 mod config;
 mod edges;
+mod fits;
 pub mod grid;
 mod hindsight;
 mod landmarks;
