@@ -130,9 +130,19 @@ fn a_car_that_slides_in_corners_has_its_sideslip_learned() {
     let (slam, report) = mismatched(sliding, |_| {});
     let learned = slam.calibration().sideslip;
     println!("sideslip learned {learned:.4} rad per m/s²: {report:?}");
-    // Measured 0.0071 of the 0.01 simulated (map RMSE 0.092 m): landmarks
-    // mapped in the same corner slide with the car and hide part of it.
-    assert!((0.004..0.014).contains(&learned), "{learned}");
+    // Measured 0.0095 of the 0.01 simulated (map RMSE 0.099 m) with the
+    // smoothing window solving for it; 0.0071 when only the scans' pose
+    // fits learnt it, whose landmarks mapped in the same corner slide with
+    // the car and hide part of it.
+    assert!((0.006..0.014).contains(&learned), "{learned}");
+    assert!(slam.calibration().sideslip_free);
+    // A car that does not slide is not given a slide.
+    let (steady, _) = mismatched(|_| {}, |_| {});
+    assert!(
+        !steady.calibration().sideslip_free,
+        "{:?}",
+        steady.calibration()
+    );
     assert!(report.association_accuracy > 0.999, "{report:?}");
     // The bound for a mismatched log.
     assert!(report.map_rmse < 0.15, "{report:?}");

@@ -113,6 +113,9 @@ pub struct Odometry {
     /// Σ dt² over the steps since the last take: white noise of σ per
     /// step integrates to a heading variance of σ² Σ dt².
     step_time2: f64,
+    /// ∂ of the motion's translation with respect to the sideslip (m per
+    /// rad per m/s²), over the steps since the last take.
+    slip_jacobian: Vector2<f64>,
     distance: f64,
     /// How long after it was measured a scan is stamped (s).
     scan_latency: f64,
@@ -132,6 +135,7 @@ impl Odometry {
             delta: SE2::identity(),
             delta_cov: Matrix3::zeros(),
             step_time2: 0.0,
+            slip_jacobian: Vector2::zeros(),
             distance: 0.0,
             scan_latency: 0.0,
             delayed: VecDeque::new(),
@@ -217,17 +221,22 @@ impl Odometry {
         let omega = omega - correction.yaw_rate_bias;
         // The velocity's angle off the heading: measured, or the sideslip of
         // the lateral acceleration.
-        let (v, slip) = match vy {
-            Some(vy) => (v.hypot(vy) * correction.speed_scale, vy.atan2(v)),
+        // The lateral acceleration the sideslip multiplies (none where the
+        // lateral speed is measured).
+        let (v, slip, lateral) = match vy {
+            Some(vy) => (v.hypot(vy) * correction.speed_scale, vy.atan2(v), 0.0),
             None => {
                 let v = v * correction.speed_scale;
-                (v, correction.sideslip * v * omega)
+                (v, correction.sideslip * v * omega, v * omega)
             }
         };
         let mut step = integrate(&SE2::identity(), v, omega, dt);
         if slip != 0.0 {
             step.t = SE2::new(0.0, 0.0, slip).rotation() * step.t;
         }
+        // A little more sideslip turns the step's translation further.
+        let turned = Vector2::new(-step.t.y, step.t.x);
+        self.slip_jacobian += self.delta.rotation() * turned * lateral;
         // Covariance of delta ∘ step: F with respect to delta, and the
         // step's own covariance rotated into delta's frame.
         let r = self.delta.rotation();
@@ -286,7 +295,14 @@ impl Odometry {
         self.delta = SE2::identity();
         self.delta_cov = Matrix3::zeros();
         self.step_time2 = 0.0;
+        self.slip_jacobian = Vector2::zeros();
         out
+    }
+
+    /// ∂ of the translation of the motion since the last [`Odometry::take`]
+    /// with respect to the correction's sideslip (read it before taking).
+    pub fn slip_jacobian(&self) -> Vector2<f64> {
+        self.slip_jacobian
     }
 
     /// Σ dt² of the integration steps since the last [`Odometry::take`]
@@ -540,5 +556,34 @@ mod tests {
             (c.to_vector() - b.to_vector()).norm() < 1e-9,
             "{c:?} vs {b:?}"
         );
+        assert_eq!(measured.slip_jacobian(), Vector2::zeros());
+    }
+
+    #[test]
+    fn the_slip_jacobian_is_the_motions_derivative() {
+        // Turning left, then right, at varying speed.
+        let drive = |sideslip: f64| {
+            let mut odometry = constant_turn(0.0);
+            let correction = Correction {
+                sideslip,
+                ..Correction::NONE
+            };
+            for k in 0..=60 {
+                let t = k as f64 * 0.02;
+                let omega = if k < 30 { 0.9 } else { -0.6 };
+                odometry.record(t, (4.0 + 0.05 * k as f64, None), omega, None, correction);
+            }
+            let jacobian = odometry.slip_jacobian();
+            (odometry.take().0, jacobian)
+        };
+        let (at, jacobian) = drive(0.01);
+        let h = 1e-6;
+        let numeric = (drive(0.01 + h).0.t - drive(0.01 - h).0.t) / (2.0 * h);
+        assert!(
+            (jacobian - numeric).norm() < 1e-6,
+            "{jacobian} vs {numeric}"
+        );
+        // Not a vanishing derivative.
+        assert!(jacobian.norm() > 1.0, "{jacobian} at {at:?}");
     }
 }

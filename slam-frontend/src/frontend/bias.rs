@@ -6,7 +6,7 @@
 use super::edges::OdometryEdge;
 use cairn_core::edge::Linearized;
 use cairn_core::{BinaryEdge, EdgeSE2, EdgeSE2XY, SE2, UnaryEdge, Variable};
-use nalgebra::{Matrix2, Matrix3, Matrix5, SMatrix, SVector, Vector2, Vector5};
+use nalgebra::{Matrix2, Matrix3, Matrix5, SMatrix, SVector, Vector2, Vector3, Vector5};
 
 /// A pose, the yaw-rate bias at that time (rad/s) and how much older than
 /// the config's `scan_latency` the scans are (s). A lap's odometry pins the
@@ -132,6 +132,18 @@ impl BinaryEdge<5, 5, 5> for OdometryBias {
 }
 
 impl OdometryBias {
+    /// ∂ of the error's pose part with respect to the sideslip, from `a`,
+    /// where `slip_jacobian` is that of the measured motion's translation:
+    /// the error subtracts the motion, turned back by the corrected turn.
+    pub(super) fn sideslip_jacobian(
+        &self,
+        a: &PoseBias,
+        slip_jacobian: &Vector2<f64>,
+    ) -> Vector3<f64> {
+        let back = self.corrected(a).rotation().transpose() * slip_jacobian;
+        Vector3::new(-back.x, -back.y, 0.0)
+    }
+
     /// The measured motion with the bias of `a` taken out of its turn.
     fn corrected(&self, a: &PoseBias) -> SE2 {
         let turn = self.delta.theta + (self.bias_used - a.bias) * self.dt;
@@ -311,6 +323,60 @@ mod tests {
     }
 
     #[test]
+    fn the_sideslip_jacobian_is_the_errors_derivative() {
+        let mut rng = StdRng::seed_from_u64(9);
+        for _ in 0..20 {
+            let slip_jacobian =
+                Vector2::new(rng.random_range(-2.0..2.0), rng.random_range(-2.0..2.0));
+            let o = OdometryEdge {
+                delta: SE2::new(0.5, 0.02, rng.random_range(-0.2..0.2)),
+                information: Matrix3::identity(),
+                dt: 0.1,
+                yaw_rate_bias: 0.001,
+                heading_variance: 1e-8,
+                slip_jacobian,
+                slip_made: slip_jacobian * 0.004,
+            };
+            let a = PoseBias {
+                pose: SE2::new(1.0, -2.0, rng.random_range(-3.0..3.0)),
+                bias: 0.003,
+                latency: 0.0,
+            };
+            let b = PoseBias {
+                pose: a.pose.compose(&SE2::new(0.45, 0.05, 0.1)),
+                ..a
+            };
+            let error = |slip: f64| {
+                let delta = o.with_sideslip(slip);
+                OdometryBias::edge(&OdometryEdge { delta, ..o }).error(&a, &b)
+            };
+            let (slip, h) = (0.01, 1e-6);
+            let numeric = (error(slip + h) - error(slip - h)) / (2.0 * h);
+            let edge = OdometryBias::edge(&OdometryEdge {
+                delta: o.with_sideslip(slip),
+                ..o
+            });
+            let analytic = edge.sideslip_jacobian(&a, &slip_jacobian);
+            assert!(
+                (analytic - numeric.fixed_rows::<3>(0)).amax() < 1e-6,
+                "{analytic} vs {numeric}"
+            );
+            assert_eq!(numeric[3], 0.0);
+        }
+        // With the sideslip it was integrated with, the motion is as measured.
+        let o = OdometryEdge {
+            delta: SE2::new(0.5, 0.0, 0.1),
+            information: Matrix3::identity(),
+            dt: 0.1,
+            yaw_rate_bias: 0.0,
+            heading_variance: 1e-8,
+            slip_jacobian: Vector2::new(0.0, 2.0),
+            slip_made: Vector2::new(0.0, 0.02),
+        };
+        assert!((o.with_sideslip(0.01).t - o.delta.t).norm() < 1e-12);
+    }
+
+    #[test]
     fn odometry_takes_the_bias_out_of_the_heading() {
         let delta = SE2::new(0.5, 0.01, 0.05);
         let o = OdometryEdge {
@@ -319,6 +385,8 @@ mod tests {
             dt: 0.1,
             yaw_rate_bias: 0.001,
             heading_variance: 1e-8,
+            slip_jacobian: Vector2::zeros(),
+            slip_made: Vector2::zeros(),
         };
         let (edge, info) = OdometryBias::new(&o, 1e-5);
         let a = PoseBias {
@@ -357,6 +425,8 @@ mod tests {
                     dt: rng.random_range(0.08..0.12),
                     yaw_rate_bias: rng.random_range(-0.003..0.003),
                     heading_variance: rng.random_range(1e-9..1e-8),
+                    slip_jacobian: Vector2::zeros(),
+                    slip_made: Vector2::zeros(),
                 })
                 .collect();
             let chain = OdometryEdge::chain(&edges);
@@ -401,6 +471,8 @@ mod tests {
             dt: 0.1,
             yaw_rate_bias: 0.002,
             heading_variance: 1e-8,
+            slip_jacobian: Vector2::zeros(),
+            slip_made: Vector2::zeros(),
         }]);
         assert_eq!(single.information, Matrix3::identity());
     }

@@ -29,6 +29,10 @@ pub struct Calibration {
     /// learnt only where this is small and the log's differs from the
     /// config's by several σ.
     pub scan_latency_sigma: Option<f64>,
+    /// Whether the smoothing window has found a sideslip (its estimate
+    /// 2.5 σ from none) and estimates it beside the poses; until then the
+    /// scans' pose fits learn it, which see only part of it.
+    pub sideslip_free: bool,
     /// Σ slip angle × lateral acceleration and Σ lateral acceleration² over
     /// the scans (with the prior): the sideslip is their least-squares ratio.
     slip_moment: f64,
@@ -44,6 +48,7 @@ impl Default for Calibration {
             yaw_rate_bias_walk: 0.0,
             scan_latency: 0.0,
             scan_latency_sigma: None,
+            sideslip_free: false,
             slip_moment: 0.0,
             slip_weight: SIDESLIP_PRIOR,
         }
@@ -71,7 +76,7 @@ const SLIP_FLOOR: f64 = 0.005;
 const MAX_SLIP_ANGLE: f64 = 0.2;
 
 /// The largest sideslip learnt (rad per m/s²): 0.5 rad at 10 m/s².
-const MAX_SIDESLIP: f64 = 0.05;
+pub(super) const MAX_SIDESLIP: f64 = 0.05;
 
 impl Calibration {
     /// The corrections, as [`Odometry`](crate::motion::Odometry) applies them.
@@ -83,17 +88,26 @@ impl Calibration {
         }
     }
 
+    /// Sets the sideslip to what the smoothing windows learnt, known with
+    /// information `info`: the scans' evidence after it adds to that.
+    pub(super) fn set_sideslip(&mut self, sideslip: f64, info: f64) {
+        self.sideslip = sideslip;
+        self.slip_moment = sideslip * info;
+        self.slip_weight = info;
+    }
+
     /// Nudges the corrections toward what one scan showed: the odometry
     /// predicted `pred` from `previous`, the landmarks put the car at `pose`.
-    /// The yaw-rate bias only with `learn_bias`: while mapping, the
-    /// smoothing window estimates it beside the poses instead.
+    /// The yaw-rate bias only `outside_window`: while mapping, the
+    /// smoothing window estimates it beside the poses; the sideslip too,
+    /// once the window has found one ([`Calibration::sideslip_free`]).
     pub(super) fn learn(
         &mut self,
         previous: &SE2,
         pred: &SE2,
         (pose, pose_cov): (&SE2, &Matrix3<f64>),
         dt: f64,
-        learn_bias: bool,
+        outside_window: bool,
     ) {
         let predicted = previous.between(pred);
         let corrected = previous.between(pose);
@@ -112,7 +126,7 @@ impl Calibration {
             .t
             .perp(&corrected.t)
             .atan2(predicted.t.dot(&corrected.t));
-        if turned.abs() < MAX_SLIP_ANGLE {
+        if (outside_window || !self.sideslip_free) && turned.abs() < MAX_SLIP_ANGLE {
             let slip = turned + self.sideslip * lateral;
             // Weighed by 1/σ² of the direction between two fits, each placed
             // across the path to the fit's σ.
@@ -124,10 +138,45 @@ impl Calibration {
             self.sideslip =
                 (self.slip_moment / self.slip_weight).clamp(-MAX_SIDESLIP, MAX_SIDESLIP);
         }
-        if learn_bias {
+        if outside_window {
             let residual = cairn_core::se2::normalize_angle(corrected.theta - predicted.theta);
             self.yaw_rate_bias -= CALIBRATION_GAIN * residual / dt;
         }
+    }
+}
+
+/// What a run of windows learnt about a constant of the car: a Gaussian
+/// that each window's estimate joins.
+#[derive(Clone, Copy, Debug, Default)]
+pub(super) struct Belief {
+    /// Mean and information.
+    pub mean: f64,
+    pub info: f64,
+}
+
+impl Belief {
+    /// N(`mean`, `sigma`²).
+    pub(super) fn new(mean: f64, sigma: f64) -> Self {
+        Self {
+            mean,
+            info: 1.0 / (sigma * sigma).max(1e-18),
+        }
+    }
+
+    /// Joins a window's estimate `value` of marginal `variance`, whose
+    /// prior this was, then lets the value wander by `walk_variance`.
+    /// Each scan's data sit in `windows` consecutive windows, so each adds
+    /// a 1/`windows` share of its information.
+    pub(super) fn carry(&mut self, value: f64, variance: f64, walk_variance: f64, windows: usize) {
+        let windows = windows.max(1) as f64;
+        let posterior_info = 1.0 / variance.max(1e-18);
+        let share = (posterior_info - self.info).max(0.0) / windows;
+        let info = self.info + share;
+        // The data's own estimate v_d solves Λ₁ v₁ = Λ₀ v₀ + (Λ₁ − Λ₀) v_d;
+        // the share pulls the prior mean toward it by share / info.
+        let gain = (posterior_info / (windows * info)).min(1.0);
+        self.mean += gain * (value - self.mean);
+        self.info = 1.0 / (1.0 / info + walk_variance);
     }
 }
 
@@ -154,7 +203,7 @@ mod tests {
             };
             let predicted = pose.compose(&step(calibration.sideslip));
             let actual = pose.compose(&step(truth));
-            calibration.learn(&pose, &predicted, (&actual, &fit), dt, false);
+            calibration.learn(&pose, &predicted, (&actual, &fit), dt, true);
             pose = actual;
         }
         let learned = calibration.correction();

@@ -56,7 +56,8 @@ pub struct FrontEndConfig {
     pub learn_yaw_rate_bias_walk: bool,
     /// Slip angle σ per m/s² of lateral acceleration (rad per m/s²): how far
     /// the car's velocity may turn off its heading in a corner, which wheel
-    /// speeds and a gyro do not see.
+    /// speeds and a gyro do not see. Also the prior σ of the sideslip the
+    /// front end learns.
     pub sideslip_sigma: f64,
     /// How long after it was measured a scan is stamped (s), in [0, 1): the
     /// detections are placed from the pose at that earlier moment, and the

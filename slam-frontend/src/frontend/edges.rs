@@ -3,7 +3,7 @@
 
 use crate::motion::compose_with_cov;
 use cairn_core::SE2;
-use nalgebra::{Matrix3, SMatrix};
+use nalgebra::{Matrix3, SMatrix, Vector2};
 
 /// The odometry between consecutive keyframes.
 #[derive(Clone, Copy, Debug)]
@@ -16,6 +16,11 @@ pub(super) struct OdometryEdge {
     pub(super) dt: f64,
     /// The yaw-rate bias the integration took out (rad/s).
     pub(super) yaw_rate_bias: f64,
+    /// ∂ of the motion's translation with respect to the sideslip (m per
+    /// rad per m/s²), and the part of it the sideslip assumed in the
+    /// integration made (that ∂ times it, summed over chained edges).
+    pub(super) slip_jacobian: Vector2<f64>,
+    pub(super) slip_made: Vector2<f64>,
     /// Variance of the integrated heading from the yaw rate's white noise
     /// alone (rad²).
     pub(super) heading_variance: f64,
@@ -31,7 +36,10 @@ impl OdometryEdge {
         }
         let (mut delta, mut cov) = (SE2::identity(), Matrix3::zeros());
         let (mut dt, mut bias_time, mut heading_variance) = (0.0, 0.0, 0.0);
+        let (mut slip_jacobian, mut slip_made) = (Vector2::zeros(), Vector2::zeros());
         for e in edges {
+            slip_jacobian += delta.rotation() * e.slip_jacobian;
+            slip_made += delta.rotation() * e.slip_made;
             let e_cov = e.information.try_inverse().unwrap_or_else(Matrix3::zeros);
             (delta, cov) = compose_with_cov(&delta, &cov, &e.delta, &e_cov);
             dt += e.dt;
@@ -48,7 +56,16 @@ impl OdometryEdge {
                 edges.first().map_or(0.0, |e| e.yaw_rate_bias)
             },
             heading_variance,
+            slip_jacobian,
+            slip_made,
         }
+    }
+
+    /// The motion as if integrated with `sideslip` (first order in the
+    /// change of sideslip).
+    pub(super) fn with_sideslip(&self, sideslip: f64) -> SE2 {
+        let t = self.delta.t + self.slip_jacobian * sideslip - self.slip_made;
+        SE2::new(t.x, t.y, self.delta.theta)
     }
 }
 

@@ -149,7 +149,7 @@ pub struct GraphSlam {
 impl GraphSlam {
     /// A front end that starts mapping at the origin (or the log's `start`).
     pub fn new(config: FrontEndConfig) -> Self {
-        let window = window::Window::new(config.yaw_rate_sigma);
+        let window = window::Window::new(config.yaw_rate_sigma, config.sideslip_sigma);
         let colors = ColorRate::new(&config);
         let mut calibration = Calibration::default();
         calibration.yaw_rate_bias_walk = config.yaw_rate_bias_walk;
@@ -342,7 +342,7 @@ impl GraphSlam {
         }
         // Predict the pose from the last keyframe.
         let previous = self.pose;
-        let step_time2 = self.motion.step_time2();
+        let steps = (self.motion.step_time2(), self.motion.slip_jacobian());
         let (delta, delta_cov) = self.motion.take();
         let (pred, pred_cov) = compose_with_cov(&previous, &self.pose_cov, &delta, &delta_cov);
         self.drift = compose_with_cov(&self.drift.0, &self.drift.1, &delta, &delta_cov);
@@ -353,14 +353,7 @@ impl GraphSlam {
                 .any(|d| relocalise::pose_sigma_at(&self.drift.1, d.position.norm()) > limit);
             let waiting = !self.lost_scans.is_empty();
             if waiting || (uncertain && self.map_near(&pred)) {
-                self.wait_lost(
-                    t,
-                    scan,
-                    cones,
-                    (pred, pred_cov),
-                    (delta, delta_cov),
-                    step_time2,
-                );
+                self.wait_lost(t, scan, cones, (pred, pred_cov), (delta, delta_cov), steps);
                 return;
             }
         }
@@ -394,20 +387,14 @@ impl GraphSlam {
             .flatten()
             .filter(|&&l| self.landmarks[l].sighting.seen >= 2)
             .count();
-        let bias_used = self.calibration.yaw_rate_bias;
+        let used = self.calibration.correction();
         if anchors >= 3 {
             let dt = self.poses.last().map_or(0.0, |p| t - p.t);
-            let learn_bias = self.mode != Mode::Mapping;
+            let outside_window = self.mode != Mode::Mapping;
             self.calibration
-                .learn(&previous, &pred, (&pose, &pose_cov), dt, learn_bias);
+                .learn(&previous, &pred, (&pose, &pose_cov), dt, outside_window);
         }
-        let keyframe = self.push_keyframe(
-            t,
-            (pose, pose_cov),
-            (delta, delta_cov),
-            step_time2,
-            bias_used,
-        );
+        let keyframe = self.push_keyframe(t, (pose, pose_cov), (delta, delta_cov), steps, used);
 
         if assigned.iter().any(Option::is_some) {
             self.drift = (SE2::identity(), Matrix3::zeros());

@@ -5,8 +5,9 @@ use super::edges::{OdometryEdge, odometry_information};
 use super::{GraphSlam, nearest_information};
 use crate::files::StampedPose;
 use crate::log::Detection;
+use crate::motion::Correction;
 use cairn_core::SE2;
-use nalgebra::{Matrix2, Matrix3, SMatrix};
+use nalgebra::{Matrix2, Matrix3, SMatrix, Vector2};
 
 impl GraphSlam {
     /// Gauss-Newton on the pose alone, landmarks held at their EKF means.
@@ -58,14 +59,15 @@ impl GraphSlam {
     }
 
     /// Makes the scan's pose the current one and a keyframe, tied to the
-    /// last by the odometry; returns its index.
+    /// last by the odometry (its Σ dt² and sideslip Jacobian, integrated
+    /// with the correction `used`); returns its index.
     pub(super) fn push_keyframe(
         &mut self,
         t: f64,
         (pose, pose_cov): (SE2, Matrix3<f64>),
         (delta, delta_cov): (SE2, Matrix3<f64>),
-        step_time2: f64,
-        bias_used: f64,
+        (step_time2, slip_jacobian): (f64, Vector2<f64>),
+        used: Correction,
     ) -> usize {
         self.pose = pose;
         self.pose_cov = pose_cov;
@@ -76,8 +78,10 @@ impl GraphSlam {
                 delta,
                 information: odometry_information(&delta_cov),
                 dt: t - self.poses[keyframe - 1].t,
-                yaw_rate_bias: bias_used,
+                yaw_rate_bias: used.yaw_rate_bias,
                 heading_variance: self.config.yaw_rate_noise.powi(2) * step_time2,
+                slip_jacobian,
+                slip_made: slip_jacobian * used.sideslip,
             });
         }
         keyframe

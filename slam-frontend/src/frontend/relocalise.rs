@@ -83,10 +83,10 @@ impl GraphSlam {
         cones: &[Detection],
         predicted: (SE2, Matrix3<f64>),
         motion: (SE2, Matrix3<f64>),
-        step_time2: f64,
+        steps: (f64, Vector2<f64>),
     ) {
-        let bias = self.calibration.yaw_rate_bias;
-        let keyframe = self.push_keyframe(t, predicted, motion, step_time2, bias);
+        let used = self.calibration.correction();
+        let keyframe = self.push_keyframe(t, predicted, motion, steps, used);
         let first = self.detections.len();
         self.detections
             .extend((0..cones.len()).map(|i| (scan, i, None)));
