@@ -133,7 +133,10 @@ pub(super) fn fits(
     let mut refined: Vec<Fit> = Vec::new();
     let mut tried: Vec<SE2> = Vec::new();
     for f in fits {
-        if tried.len() >= REFINED || tried.iter().any(|p| same_pose(p, &f.pose)) {
+        if tried.len() >= REFINED {
+            break;
+        }
+        if tried.iter().any(|p| same_pose(p, &f.pose)) {
             continue;
         }
         tried.push(f.pose);
