@@ -1,8 +1,9 @@
 #!/usr/bin/env python3
 """The real-data report: every estimator and association method on each robot
-of MRCLAM Dataset 6, with and without the barcodes as tracker ids, beside the
-batch smoother given the barcodes as associations. Writes the tables between
-the `results` markers of docs/real-data.md and a map plot per robot.
+of MRCLAM Datasets 6 and 1, with and without the barcodes as tracker ids,
+beside the batch smoother given the barcodes as associations. Writes the
+tables between the `results` and `results-dataset1` markers of
+docs/real-data.md and a map plot per robot.
 
   python3 scripts/real_data.py [--cairn target/release/cairn] [--shared ../shared]
 """
@@ -37,9 +38,44 @@ def score(cairn, truth, folder, plot=None, title=None):
 
 def row(label, r):
     mapped = 15 - r["missed"]
-    return "| %s | %d | %d | %d | %.3f | %.1f%% | %.1f%% | %.2f |" % (
+    ate = "–" if r.get("ate") is None else "%.2f" % r["ate"]
+    return "| %s | %d | %d | %d | %.3f | %.1f%% | %.1f%% | %s |" % (
         label, r["landmarks"], mapped, r["phantom"], r["map_rmse_aligned"],
-        100 * r["association_accuracy"], 100 * r["association_accuracy_majority"], r["ate"])
+        100 * r["association_accuracy"], 100 * r["association_accuracy_majority"], ate)
+
+
+HEADER = ("| run | landmarks | true ones mapped (of 15) | phantom | map RMSE aligned (m) "
+          "| association | by majority | ATE (m) |\n|---|---|---|---|---|---|---|---|")
+
+
+def robot_section(a, dataset, name, robot, work, config, plot):
+    """The tables of one robot: the smoother given the barcodes, then every
+    estimator and association method, then the barcodes as tracker ids."""
+    lines = ["### %s, robot %d\n" % (name, robot), HEADER]
+    folder = name.replace(" ", "")
+    plain = os.path.join(work, "%s-r%d" % (folder, robot))
+    ids = os.path.join(work, "%s-i%d" % (folder, robot))
+    run([a.cairn, "fs-import", "mrclam", dataset, "--robot", str(robot), "-o", plain])
+    run([a.cairn, "fs-import", "mrclam", dataset, "--robot", str(robot), "--ids", "-o", ids])
+    run([a.cairn, "fs-smooth", plain + "/log.jsonl", "--assoc", plain + "/truth_assoc.csv",
+         "--config", config, "--map-out", plain + "/map.csv", "--traj-out", plain + "/traj.tum",
+         "--assoc-out", plain + "/assoc.csv"])
+    lines.append(row("batch smoother, barcodes as associations", score(a.cairn, plain, plain)))
+    for folder, methods, tag in [(plain, ASSOCIATIONS, ""), (ids, ["tracking"], ", `--ids`")]:
+        for estimator in ESTIMATORS:
+            for method in methods:
+                run([a.cairn, "fs-slam", folder + "/log.jsonl", "--config", config,
+                     "--estimator", estimator, "--association", method,
+                     "--map-out", folder + "/map.csv", "--traj-out", folder + "/traj.tum",
+                     "--assoc-out", folder + "/assoc.csv"])
+                path = title = None
+                if estimator == "graph" and method == "ml" and folder == plain:
+                    path = os.path.join(ROOT, plot % robot)
+                    title = "MRCLAM %s, robot %d: graph SLAM, ml" % (name, robot)
+                r = score(a.cairn, plain, folder, path, title)
+                lines.append(row("%s, %s%s" % (estimator, method, tag), r))
+    print("%s robot %d done" % (name, robot))
+    return "\n".join(lines)
 
 
 def main():
@@ -47,42 +83,18 @@ def main():
     ap.add_argument("--cairn", default=os.path.join(ROOT, "target/release/cairn"))
     ap.add_argument("--shared", default=os.path.join(ROOT, "../shared"))
     a = ap.parse_args()
-    dataset = os.path.join(a.shared, "real/mrclam/MRCLAM_Dataset6")
     config = os.path.join(ROOT, "configs/mrclam.toml")
     work = tempfile.mkdtemp(prefix="cairn-real-")
-    header = ("| run | landmarks | true ones mapped (of 15) | phantom | map RMSE aligned (m) "
-              "| association | by majority | ATE (m) |\n|---|---|---|---|---|---|---|---|")
-    sections = []
-    for robot in range(1, 6):
-        lines = ["### Robot %d\n" % robot, header]
-        plain = os.path.join(work, "r%d" % robot)
-        ids = os.path.join(work, "i%d" % robot)
-        run([a.cairn, "fs-import", "mrclam", dataset, "--robot", str(robot), "-o", plain])
-        run([a.cairn, "fs-import", "mrclam", dataset, "--robot", str(robot), "--ids", "-o", ids])
-        run([a.cairn, "fs-smooth", plain + "/log.jsonl", "--assoc", plain + "/truth_assoc.csv",
-             "--config", config, "--map-out", plain + "/map.csv", "--traj-out", plain + "/traj.tum",
-             "--assoc-out", plain + "/assoc.csv"])
-        lines.append(row("batch smoother, barcodes as associations", score(a.cairn, plain, plain)))
-        for folder, methods, tag in [(plain, ASSOCIATIONS, ""), (ids, ["tracking"], ", `--ids`")]:
-            for estimator in ESTIMATORS:
-                for method in methods:
-                    run([a.cairn, "fs-slam", folder + "/log.jsonl", "--config", config,
-                         "--estimator", estimator, "--association", method,
-                         "--map-out", folder + "/map.csv", "--traj-out", folder + "/traj.tum",
-                         "--assoc-out", folder + "/assoc.csv"])
-                    plot = title = None
-                    if estimator == "graph" and method == "ml" and folder == plain:
-                        plot = os.path.join(ROOT, "docs/real-data/robot%d.png" % robot)
-                        title = "MRCLAM Dataset 6, robot %d: graph SLAM, ml" % robot
-                    r = score(a.cairn, plain, folder, plot, title)
-                    lines.append(row("%s, %s%s" % (estimator, method, tag), r))
-        sections.append("\n".join(lines))
-        print("robot %d done" % robot)
     doc = os.path.join(ROOT, "docs/real-data.md")
     text = open(doc).read()
-    text = re.sub(r"(<!-- results -->\n).*(<!-- /results -->)",
-                  lambda m: m.group(1) + "\n\n".join(sections) + "\n" + m.group(2),
-                  text, flags=re.S)
+    for name, marker, plot in [("Dataset6", "results", "docs/real-data/robot%d.png"),
+                               ("Dataset1", "results-dataset1", "docs/real-data/dataset1-robot%d.png")]:
+        dataset = os.path.join(a.shared, "real/mrclam/MRCLAM_" + name)
+        sections = [robot_section(a, dataset, name.replace("Dataset", "Dataset "), robot, work,
+                                  config, plot) for robot in range(1, 6)]
+        text = re.sub(r"(<!-- %s -->\n).*(<!-- /%s -->)" % (marker, marker),
+                      lambda m: m.group(1) + "\n\n".join(sections) + "\n" + m.group(2),
+                      text, flags=re.S)
     open(doc, "w").write(text)
 
 

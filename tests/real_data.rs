@@ -1,6 +1,7 @@
 //! Real data end to end: a robot of MRCLAM Dataset 6 imported, mapped by
 //! every estimator from `configs/mrclam.toml`, and scored, as a user would
-//! run it. The bounds are regression guards near today's results (see
+//! run it, and Dataset 1 (no true trajectory) scored with its map placed by
+//! its associations. The bounds are regression guards near today's results (see
 //! docs/real-data.md), far from the targets of the real-data issue.
 
 mod common;
@@ -276,5 +277,77 @@ fn the_graph_front_end_finds_itself_again_on_every_robot() {
             "robot {robot}: {report}"
         );
     }
+    let _ = std::fs::remove_dir_all(&dir);
+}
+
+/// MRCLAM's Dataset 1 has no Vicon trajectory: the import writes no start
+/// pose and no true trajectory, the estimate is in the robot's own frame,
+/// and `fs-eval` places it on the truth by its associations before scoring
+/// the map. The batch smoother given the barcodes lands every landmark
+/// there (today 0.048 m on robot 2; the bound is a regression guard), and
+/// the placement is the best rigid fit: the map RMSE is the aligned one.
+#[test]
+fn a_recording_without_a_trajectory_is_placed_by_its_associations() {
+    let Some(shared) = common::shared() else {
+        return;
+    };
+    let dataset = shared.join("real/mrclam/MRCLAM_Dataset1");
+    let dir = std::env::temp_dir().join(format!("cairn-dataset1-{}", std::process::id()));
+    let _ = std::fs::remove_dir_all(&dir);
+    let o = cairn(&[
+        "fs-import",
+        "mrclam",
+        s(&dataset),
+        "--robot",
+        "2",
+        "-o",
+        s(&dir),
+    ]);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    assert!(!dir.join("truth_traj.tum").exists());
+    let config = Path::new(env!("CARGO_MANIFEST_DIR")).join("configs/mrclam.toml");
+    let (map, traj, assoc) = (
+        dir.join("s.csv"),
+        dir.join("s.tum"),
+        dir.join("s_assoc.csv"),
+    );
+    let o = cairn(&[
+        "fs-smooth",
+        s(&dir.join("log.jsonl")),
+        "--assoc",
+        s(&dir.join("truth_assoc.csv")),
+        "--config",
+        s(&config),
+        "--map-out",
+        s(&map),
+        "--traj-out",
+        s(&traj),
+        "--assoc-out",
+        s(&assoc),
+    ]);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let report = evaluate(&dir, &map, &traj, &assoc);
+    let number = |key: &str| report[key].as_f64().unwrap_or(f64::NAN);
+    assert_eq!(report["placed_by_associations"].as_bool(), Some(true));
+    assert_eq!(
+        (number("landmarks"), number("phantom")),
+        (15.0, 0.0),
+        "{report}"
+    );
+    assert!(number("map_rmse") < 0.1, "{report}");
+    assert!(
+        number("map_rmse") - number("map_rmse_aligned") < 0.01,
+        "{report}"
+    );
+    assert!(report["ate"].is_null(), "{report}");
+    // The graph front end, not told the barcodes, is scored the same way.
+    let (o, [map, traj, assoc]) = slam(&dir, &["--estimator", "graph"]);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let report = evaluate(&dir, &map, &traj, &assoc);
+    assert_eq!(report["placed_by_associations"].as_bool(), Some(true));
+    assert!(
+        report["map_rmse"].as_f64().is_some_and(f64::is_finite),
+        "{report}"
+    );
     let _ = std::fs::remove_dir_all(&dir);
 }

@@ -3,6 +3,7 @@
 //! colour), trajectory error (ATE), data-association accuracy, missed and
 //! phantom landmarks, latency.
 
+use cairn_core::SE2;
 use cairn_slam::Color;
 use cairn_slam::Cone;
 use cairn_slam::files::{Association, StampedPose};
@@ -34,6 +35,11 @@ pub struct Report {
     /// more when they are over-confident.
     #[serde(skip_serializing_if = "Option::is_none")]
     pub map_nees: Option<f64>,
+    /// Whether the map and trajectory were placed on the truth by the
+    /// associations first ([`placement_by_associations`]): the estimate
+    /// was in its own frame.
+    #[serde(skip_serializing_if = "std::ops::Not::not")]
+    pub placed_by_associations: bool,
     /// Per colour (of the true cone): (colour, RMSE, matched landmarks).
     pub map_rmse_by_color: Vec<(String, f64, usize)>,
     /// Landmarks left without a true cone by the one-to-one matching:
@@ -319,6 +325,40 @@ pub fn aligned_rms(a: &[Vector2<f64>], b: &[Vector2<f64>]) -> f64 {
     rms(a.iter().zip(b).map(|(p, q)| (r * p + t - q).norm()))
 }
 
+/// Where a map estimated in its own frame (a log with no start pose, such
+/// as MRCLAM's Dataset 1) stands on the truth: the rigid transform that
+/// best puts each landmark on the true cone its detections name
+/// ([`association_labels`]). `None` with fewer than two named landmarks.
+pub fn placement_by_associations(
+    truth_map: &[Cone],
+    map: &[Cone],
+    truth: &[Association],
+    estimate: &[Association],
+) -> Option<SE2> {
+    let (a, b): (Vec<_>, Vec<_>) = association_labels(truth, estimate)
+        .iter()
+        .enumerate()
+        .filter_map(|(l, c)| Some((map.get(l)?.position, truth_map.get((*c)?)?.position)))
+        .unzip();
+    if a.len() < 2 {
+        return None;
+    }
+    let (r, t) = rigid_alignment(&a, &b);
+    Some(SE2::new(t.x, t.y, r[(1, 0)].atan2(r[(0, 0)])))
+}
+
+/// Moves `map` (positions and covariances) and `trajectory` by `placement`.
+pub fn place(placement: &SE2, map: &mut [Cone], trajectory: &mut [StampedPose]) {
+    let r = placement.rotation();
+    for cone in map {
+        cone.position = placement.transform_point(&cone.position);
+        cone.covariance = r * cone.covariance * r.transpose();
+    }
+    for p in trajectory {
+        p.pose = placement.compose(&p.pose);
+    }
+}
+
 /// The rotation and translation minimising Σ‖R aᵢ + t − bᵢ‖².
 pub fn rigid_alignment(a: &[Vector2<f64>], b: &[Vector2<f64>]) -> (Matrix2<f64>, Vector2<f64>) {
     cairn_slam::points::arun(a, b).unwrap_or_else(|| {
@@ -338,4 +378,85 @@ pub fn latency_ms(seconds: &[f64]) -> Option<[f64; 4]> {
     s.sort_by(f64::total_cmp);
     let at = |q: f64| s[((s.len() - 1) as f64 * q).round() as usize] * 1e3;
     Some([at(0.5), at(0.99), at(0.999), at(1.0)])
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn cone(x: f64, y: f64) -> Cone {
+        Cone {
+            position: Vector2::new(x, y),
+            color: Color::Unknown,
+            covariance: Matrix2::new(0.04, 0.0, 0.0, 0.01),
+        }
+    }
+
+    #[test]
+    fn a_map_in_its_own_frame_is_placed_where_its_detections_say() {
+        let truth_map = vec![
+            cone(0.0, 0.0),
+            cone(4.0, 0.0),
+            cone(4.0, 3.0),
+            cone(0.0, 5.0),
+        ];
+        // The estimate: the truth seen from a frame turned 0.7 rad and moved,
+        // its rows in another order, with one landmark a phantom.
+        let frame = SE2::new(2.0, -1.0, 0.7);
+        let order = [2, 0, 3, 1];
+        let mut map: Vec<Cone> = order
+            .iter()
+            .map(|&i| {
+                let mut c = truth_map[i].clone();
+                c.position = frame.inverse().transform_point(&c.position);
+                c
+            })
+            .collect();
+        map.push(cone(9.0, 9.0));
+        let mut truth = Vec::new();
+        let mut estimate = Vec::new();
+        for (row, &i) in order.iter().enumerate() {
+            for scan in 0..3 {
+                truth.push(Association {
+                    scan,
+                    det: row,
+                    landmark: Some(i),
+                });
+                estimate.push(Association {
+                    scan,
+                    det: row,
+                    landmark: Some(row),
+                });
+            }
+        }
+        // A false positive matched to the phantom names no cone.
+        truth.push(Association {
+            scan: 5,
+            det: 0,
+            landmark: None,
+        });
+        estimate.push(Association {
+            scan: 5,
+            det: 0,
+            landmark: Some(4),
+        });
+        let placement =
+            placement_by_associations(&truth_map, &map, &truth, &estimate).expect("placed");
+        assert!((placement.t - frame.t).norm() < 1e-9);
+        assert!((placement.theta - frame.theta).abs() < 1e-9);
+        let mut trajectory = vec![StampedPose {
+            t: 0.0,
+            pose: frame.inverse(),
+        }];
+        place(&placement, &mut map, &mut trajectory);
+        for (row, &i) in order.iter().enumerate() {
+            assert!((map[row].position - truth_map[i].position).norm() < 1e-9);
+        }
+        // The covariance turns with the map: its long axis along the frame's x.
+        let r = frame.rotation();
+        assert!((map[0].covariance - r * truth_map[0].covariance * r.transpose()).norm() < 1e-12);
+        assert!(trajectory[0].pose.t.norm() < 1e-9 && trajectory[0].pose.theta.abs() < 1e-9);
+        // Fewer than two named landmarks cannot place a map.
+        assert!(placement_by_associations(&truth_map, &map, &truth[..3], &estimate[..3]).is_none());
+    }
 }

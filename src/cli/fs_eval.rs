@@ -2,7 +2,10 @@
 
 use super::fs::{TRUTH_ASSOC, TRUTH_MAP, TRUTH_TRAJ, read_text};
 use super::{bad_input, file_name};
-use cairn::fs_tools::eval::{Report, evaluate, latency_ms, one_to_one_accuracy, position_errors};
+use cairn::fs_tools::eval::{
+    Report, evaluate, latency_ms, one_to_one_accuracy, place, placement_by_associations,
+    position_errors,
+};
 use cairn::plot::{MapPlot, draw};
 use cairn::slam::Cone;
 use cairn::slam::files::{self, StampedPose};
@@ -14,8 +17,10 @@ use std::path::{Path, PathBuf};
 #[derive(Debug, Args)]
 pub struct EvalArgs {
     /// Truth directory (from fs-sim or fs-import) with truth_map.csv,
-    /// truth_assoc.csv and truth_traj.tum (the trajectory is not scored
-    /// without it).
+    /// truth_assoc.csv and truth_traj.tum. Without the trajectory it is not
+    /// scored, and the estimate is taken to be in its own frame: with
+    /// --assoc the map is first placed on the truth where its landmarks'
+    /// detections say they stand.
     #[arg(long)]
     truth: PathBuf,
     /// Estimated map (EUFS CSV).
@@ -71,9 +76,18 @@ pub fn run_eval(a: EvalArgs) -> Result<(), super::CliError> {
         ),
         None => (Vec::new(), Vec::new()),
     };
-    let map = map_from_csv(&read_text(&a.map)?).map_err(bad_input(a.map.display()))?;
-    let traj =
+    let mut map = map_from_csv(&read_text(&a.map)?).map_err(bad_input(a.map.display()))?;
+    let mut traj =
         files::trajectory_from_tum(&read_text(&a.traj)?).map_err(bad_input(a.traj.display()))?;
+    // Without a true trajectory the log had no start pose either: the
+    // estimate is in its own frame, and the associations place it.
+    let placement = truth_traj
+        .is_none()
+        .then(|| placement_by_associations(&truth_map, &map, &truth_assoc, &assoc))
+        .flatten();
+    if let Some(placement) = &placement {
+        place(placement, &mut map, &mut traj);
+    }
     let mut report = evaluate(
         &truth_map,
         &map,
@@ -82,6 +96,7 @@ pub fn run_eval(a: EvalArgs) -> Result<(), super::CliError> {
         &truth_assoc,
         &assoc,
     );
+    report.placed_by_associations = placement.is_some();
     if let Some(path) = &a.assoc_real_time {
         let truth = files::associations_from_csv(&read_text(&a.truth.join(TRUTH_ASSOC))?)
             .map_err(bad_input(TRUTH_ASSOC))?;
@@ -202,14 +217,20 @@ fn scored(metres: f64) -> String {
 
 /// The report as an aligned text table.
 pub fn table(r: &Report) -> String {
-    let mut rows = vec![
-        ("landmarks".to_string(), r.landmarks.to_string()),
+    let mut rows = vec![("landmarks".to_string(), r.landmarks.to_string())];
+    if r.placed_by_associations {
+        rows.push((
+            "map placed by".into(),
+            "the associations (no true trajectory)".into(),
+        ));
+    }
+    rows.extend([
         ("map RMSE (m)".into(), format!("{:.3}", r.map_rmse)),
         (
             "map RMSE, aligned (m)".into(),
             format!("{:.3}", r.map_rmse_aligned),
         ),
-    ];
+    ]);
     if let (Some(predicted), Some(nees)) = (r.map_rmse_predicted, r.map_nees) {
         rows.push(("map RMSE, predicted (m)".into(), format!("{predicted:.3}")));
         rows.push(("map NEES (2 if consistent)".into(), format!("{nees:.2}")));
