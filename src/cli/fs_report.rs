@@ -3,7 +3,7 @@
 //! Markdown report with plots.
 
 use super::fs_eval::plot_run;
-use super::fs_targets::{Summary, TrackSummary, targets_section};
+use super::fs_targets::{SeedRow, Summary, TrackSummary, seed_by_seed_section, targets_section};
 use super::progress::Progress;
 use cairn::fs_tools::Track;
 use cairn::fs_tools::configs::assumed_config;
@@ -60,6 +60,7 @@ pub struct ReportArgs {
 /// One simulated and scored run.
 pub struct Run {
     track: usize,
+    seed: u64,
     preset: &'static str,
     method: AssociationMethod,
     /// Its score.
@@ -110,6 +111,7 @@ pub fn run(a: ReportArgs) -> Result<(), super::CliError> {
             progress.inc();
             Run {
                 track: *t,
+                seed: *seed,
                 preset: preset.name,
                 method: *method,
                 report,
@@ -208,6 +210,16 @@ pub fn run(a: ReportArgs) -> Result<(), super::CliError> {
         }
         let _ = writeln!(md);
     }
+    let clean: Vec<SeedRow> = runs
+        .iter()
+        .filter(|r| r.preset == "standard" && r.method == AssociationMethod::MaximumLikelihood)
+        .map(|r| SeedRow {
+            track: &tracks[r.track].0.name,
+            seed: r.seed,
+            report: &r.report,
+        })
+        .collect();
+    md += &seed_by_seed_section(&clean);
     if !skipped.is_empty() {
         let _ = writeln!(md, "## Tracks left out\n");
         for s in &skipped {
