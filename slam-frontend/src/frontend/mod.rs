@@ -21,6 +21,7 @@ mod noise;
 mod optimise;
 mod pose;
 mod relocalise;
+mod remap;
 mod window;
 pub use calibration::Calibration;
 pub use config::{ConfigError, FrontEndConfig};
@@ -138,6 +139,9 @@ pub struct GraphSlam {
     lost_scans: Vec<loop_closure::PendingScan>,
     /// Times the pose was found on the map again.
     relocalisations: usize,
+    /// Where mapping went on after relocalisation gave up
+    /// ([`GraphSlam::merge_remapped`]).
+    remapped: Vec<remap::Remapped>,
     /// The motion since the last scan that matched a landmark, and its
     /// covariance: how far the pose may have drifted from the map.
     drift: (SE2, Matrix3<f64>),
@@ -190,6 +194,7 @@ impl GraphSlam {
             colors,
             lost_scans: Vec::new(),
             relocalisations: 0,
+            remapped: Vec::new(),
             drift: (SE2::identity(), Matrix3::zeros()),
             assumed_noise,
             noise: noise::NoiseLearner::new(),
@@ -267,11 +272,14 @@ impl GraphSlam {
     /// keeps the estimate as it was. docs/bench/frontend-options.md has the
     /// measurements behind each step.
     pub fn finish(&mut self) -> Result<(), OptimiseError> {
-        let revisited = self.loop_closures > 0 || self.relocalisations > 0;
-        if !revisited || self.timing.final_optimisation.is_some() {
+        if self.timing.final_optimisation.is_some() {
             return Ok(());
         }
         let start = Instant::now();
+        let merged = self.merge_remapped();
+        if self.loop_closures == 0 && self.relocalisations == 0 && merged == 0 {
+            return Ok(());
+        }
         // Matching again skips the scans whose detections are all matched.
         let scans = std::mem::take(&mut self.scan_log);
         let gate = self.config.gate.max(FINAL_GATE);

@@ -275,13 +275,7 @@ impl GraphSlam {
             } else {
                 (b, a)
             };
-            let dropped = self.landmarks[drop].sighting.clone();
-            let kept = &mut self.landmarks[keep].sighting;
-            for k in 0..5 {
-                kept.votes[k] += dropped.votes[k];
-            }
-            kept.seen += dropped.seen;
-            self.alias[drop] = keep;
+            self.absorb(keep, drop);
             let mut merged = scans.remove(&drop).unwrap_or_default();
             merged.extend_from_slice(&scans[&keep]);
             merged.sort_unstable();
@@ -289,9 +283,21 @@ impl GraphSlam {
         }
     }
 
+    /// Makes landmark `drop` an alias of `keep`, which takes its colour
+    /// votes and sightings.
+    pub(super) fn absorb(&mut self, keep: usize, drop: usize) {
+        let dropped = self.landmarks[drop].sighting.clone();
+        let kept = &mut self.landmarks[keep].sighting;
+        for k in 0..5 {
+            kept.votes[k] += dropped.votes[k];
+        }
+        kept.seen += dropped.seen;
+        self.alias[drop] = keep;
+    }
+
     /// The scans that matched a detection to each landmark of `pairs`, in
     /// ascending order (from the association record, which is in scan order).
-    fn scans_seeing(&self, pairs: &[(usize, usize)]) -> HashMap<usize, Vec<usize>> {
+    pub(super) fn scans_seeing(&self, pairs: &[(usize, usize)]) -> HashMap<usize, Vec<usize>> {
         let mut scans: HashMap<usize, Vec<usize>> = pairs
             .iter()
             .flat_map(|&(a, b)| [(a, Vec::new()), (b, Vec::new())])
@@ -306,7 +312,7 @@ impl GraphSlam {
 }
 
 /// Whether two ascending lists share an element.
-fn shares_a_scan(a: &[usize], b: &[usize]) -> bool {
+pub(super) fn shares_a_scan(a: &[usize], b: &[usize]) -> bool {
     let (mut i, mut j) = (0, 0);
     while i < a.len() && j < b.len() {
         match a[i].cmp(&b[j]) {

@@ -16,11 +16,11 @@ use nalgebra::{Matrix3, Rotation2, Vector2, Vector3};
 
 /// Detections within this distance of a map landmark after a candidate
 /// correction agree with it (m).
-const AGREE: f64 = 0.35;
+pub(super) const AGREE: f64 = 0.35;
 
 /// Two detections propose a correction only when this far apart (m): closer
 /// ones fix the heading poorly.
-const BASELINE: f64 = 1.0;
+pub(super) const BASELINE: f64 = 1.0;
 
 /// Scans waited for a fit before the landmarks in view are taken as new.
 const PATIENCE: usize = 40;
@@ -32,7 +32,7 @@ const TOGETHER: f64 = 10.0;
 /// How much better (in [`Fit::score`]) the chosen correction must be than
 /// any other that differs by more than [`DISTINCT`]: two detections more,
 /// or as many and a correction e² times likelier.
-const MARGIN: f64 = 2.0;
+pub(super) const MARGIN: f64 = 2.0;
 
 /// Corrections closer than this (m, or rad for the heading) are the same.
 const DISTINCT: (f64, f64) = (0.5, 0.1);
@@ -114,6 +114,10 @@ impl GraphSlam {
                 // would take them for mapped ones nearby, so the pose is
                 // taken as it stands and mapping goes on from it.
                 self.lost_scans.clear();
+                self.remapped.push(super::remap::Remapped {
+                    keyframe: self.poses.len(),
+                    landmark: self.landmarks.len(),
+                });
                 self.pose_cov = relocalised_cov();
                 self.drift = (SE2::identity(), Matrix3::zeros());
             }
@@ -246,7 +250,7 @@ impl GraphSlam {
 
 /// The rigid motion that takes `a` to `ma` and `b` to `mb` (exactly in
 /// direction, midpoints matched).
-fn two_point(
+pub(super) fn two_point(
     a: &Vector2<f64>,
     b: &Vector2<f64>,
     ma: &Vector2<f64>,
