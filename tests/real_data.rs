@@ -20,6 +20,17 @@ fn dataset6() -> Option<PathBuf> {
     Some(common::shared()?.join("real/mrclam/MRCLAM_Dataset6"))
 }
 
+fn dataset1() -> Option<PathBuf> {
+    Some(common::shared()?.join("real/mrclam/MRCLAM_Dataset1"))
+}
+
+/// An empty scratch folder named for `what` and this process.
+fn scratch(what: &str) -> PathBuf {
+    let dir = std::env::temp_dir().join(format!("cairn-{what}-{}", std::process::id()));
+    let _ = std::fs::remove_dir_all(&dir);
+    dir
+}
+
 /// `fs-eval --json` of an estimate against the truth in `dir`.
 fn evaluate(dir: &Path, map: &Path, traj: &Path, assoc: &Path) -> serde_json::Value {
     let o = cairn(&[
@@ -66,27 +77,63 @@ fn slam(dir: &Path, options: &[&str]) -> (Output, [PathBuf; 3]) {
     (cairn(&args), outputs)
 }
 
+/// `fs-import mrclam` of `robot` of `dataset` into `dir`; what it said.
+fn import(dataset: &Path, robot: &str, dir: &Path) -> String {
+    let o = cairn(&[
+        "fs-import",
+        "mrclam",
+        s(dataset),
+        "--robot",
+        robot,
+        "-o",
+        s(dir),
+    ]);
+    let said = String::from_utf8_lossy(&o.stderr).into_owned();
+    assert!(o.status.success(), "{said}");
+    said
+}
+
+/// `fs-smooth` of the imported log in `dir` given the barcodes, with
+/// `extra` options; its outputs in `dir` as (map, trajectory, associations).
+fn smooth(dir: &Path, extra: &[&str]) -> [PathBuf; 3] {
+    let config = Path::new(env!("CARGO_MANIFEST_DIR")).join("configs/mrclam.toml");
+    let outputs = [
+        dir.join("s.csv"),
+        dir.join("s.tum"),
+        dir.join("s_assoc.csv"),
+    ];
+    let [map, traj, assoc] = &outputs;
+    let (log, truth) = (dir.join("log.jsonl"), dir.join("truth_assoc.csv"));
+    let mut args = vec![
+        "fs-smooth",
+        s(&log),
+        "--assoc",
+        s(&truth),
+        "--config",
+        s(&config),
+        "--map-out",
+        s(map),
+        "--traj-out",
+        s(traj),
+        "--assoc-out",
+        s(assoc),
+    ];
+    args.extend_from_slice(extra);
+    let o = cairn(&args);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    outputs
+}
+
 #[test]
 fn every_estimator_maps_an_imported_mrclam_robot() {
     let Some(dataset) = dataset6() else { return };
     let dir = std::env::temp_dir().join(format!("cairn-real-{}", std::process::id()));
     let _ = std::fs::remove_dir_all(&dir);
-    let o = cairn(&[
-        "fs-import",
-        "mrclam",
-        s(&dataset),
-        "--robot",
-        "4",
-        "-o",
-        s(&dir),
-    ]);
-    let said = String::from_utf8_lossy(&o.stderr);
-    assert!(o.status.success(), "{said}");
+    let said = import(&dataset, "4", &dir);
     assert!(
         said.contains("2026 detections (3 misread barcodes)"),
         "{said}"
     );
-    let config = Path::new(env!("CARGO_MANIFEST_DIR")).join("configs/mrclam.toml");
     for estimator in ["graph", "ekf", "fastslam1", "fastslam2"] {
         let (o, [map, traj, assoc]) = slam(&dir, &["--estimator", estimator]);
         assert!(
@@ -113,29 +160,8 @@ fn every_estimator_maps_an_imported_mrclam_robot() {
     // The batch smoother given the barcodes maps every landmark (today
     // 0.176 m aligned on this robot; the bound is a regression guard), and
     // its graph solves again from the g2o file at no lower χ².
-    let (map, traj, assoc, g2o) = (
-        dir.join("s.csv"),
-        dir.join("s.tum"),
-        dir.join("s_assoc.csv"),
-        dir.join("s.g2o"),
-    );
-    let o = cairn(&[
-        "fs-smooth",
-        s(&dir.join("log.jsonl")),
-        "--assoc",
-        s(&dir.join("truth_assoc.csv")),
-        "--config",
-        s(&config),
-        "--map-out",
-        s(&map),
-        "--traj-out",
-        s(&traj),
-        "--assoc-out",
-        s(&assoc),
-        "--g2o-out",
-        s(&g2o),
-    ]);
-    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let g2o = dir.join("s.g2o");
+    let [map, traj, assoc] = smooth(&dir, &["--g2o-out", s(&g2o)]);
     let report = evaluate(&dir, &map, &traj, &assoc);
     assert_eq!(
         (report["landmarks"].as_u64(), report["phantom"].as_u64()),
@@ -249,16 +275,7 @@ fn the_graph_front_end_finds_itself_again_on_every_robot() {
     for robot in 1..=5 {
         let _ = std::fs::remove_dir_all(&dir);
         let robot = robot.to_string();
-        let o = cairn(&[
-            "fs-import",
-            "mrclam",
-            s(&dataset),
-            "--robot",
-            &robot,
-            "-o",
-            s(&dir),
-        ]);
-        assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+        import(&dataset, &robot, &dir);
         let (o, [map, traj, assoc]) = slam(&dir, &["--estimator", "graph", "--association", "ml"]);
         let said = String::from_utf8_lossy(&o.stderr);
         assert!(o.status.success(), "robot {robot}: {said}");
@@ -288,44 +305,11 @@ fn the_graph_front_end_finds_itself_again_on_every_robot() {
 /// the placement is the best rigid fit: the map RMSE is the aligned one.
 #[test]
 fn a_recording_without_a_trajectory_is_placed_by_its_associations() {
-    let Some(shared) = common::shared() else {
-        return;
-    };
-    let dataset = shared.join("real/mrclam/MRCLAM_Dataset1");
-    let dir = std::env::temp_dir().join(format!("cairn-dataset1-{}", std::process::id()));
-    let _ = std::fs::remove_dir_all(&dir);
-    let o = cairn(&[
-        "fs-import",
-        "mrclam",
-        s(&dataset),
-        "--robot",
-        "2",
-        "-o",
-        s(&dir),
-    ]);
-    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let Some(dataset) = dataset1() else { return };
+    let dir = scratch("dataset1");
+    import(&dataset, "2", &dir);
     assert!(!dir.join("truth_traj.tum").exists());
-    let config = Path::new(env!("CARGO_MANIFEST_DIR")).join("configs/mrclam.toml");
-    let (map, traj, assoc) = (
-        dir.join("s.csv"),
-        dir.join("s.tum"),
-        dir.join("s_assoc.csv"),
-    );
-    let o = cairn(&[
-        "fs-smooth",
-        s(&dir.join("log.jsonl")),
-        "--assoc",
-        s(&dir.join("truth_assoc.csv")),
-        "--config",
-        s(&config),
-        "--map-out",
-        s(&map),
-        "--traj-out",
-        s(&traj),
-        "--assoc-out",
-        s(&assoc),
-    ]);
-    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let [map, traj, assoc] = smooth(&dir, &[]);
     let report = evaluate(&dir, &map, &traj, &assoc);
     let number = |key: &str| report[key].as_f64().unwrap_or(f64::NAN);
     assert_eq!(report["placed_by_associations"].as_bool(), Some(true));
@@ -359,22 +343,9 @@ fn a_recording_without_a_trajectory_is_placed_by_its_associations() {
 /// 30, 15 and 64% without the merge). The bounds are regression guards.
 #[test]
 fn landmarks_mapped_again_after_the_robot_lost_itself_are_merged() {
-    let Some(shared) = common::shared() else {
-        return;
-    };
-    let dataset = shared.join("real/mrclam/MRCLAM_Dataset1");
-    let dir = std::env::temp_dir().join(format!("cairn-remapped-{}", std::process::id()));
-    let _ = std::fs::remove_dir_all(&dir);
-    let o = cairn(&[
-        "fs-import",
-        "mrclam",
-        s(&dataset),
-        "--robot",
-        "1",
-        "-o",
-        s(&dir),
-    ]);
-    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let Some(dataset) = dataset1() else { return };
+    let dir = scratch("remapped");
+    import(&dataset, "1", &dir);
     let (o, [map, traj, assoc]) = slam(&dir, &["--estimator", "graph", "--association", "ml"]);
     assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
     let report = evaluate(&dir, &map, &traj, &assoc);
