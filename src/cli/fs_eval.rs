@@ -87,6 +87,12 @@ pub fn run_eval(a: EvalArgs) -> Result<(), super::CliError> {
         .flatten();
     if let Some(placement) = &placement {
         place(placement, &mut map, &mut traj);
+    } else if truth_traj.is_none() {
+        eprintln!(
+            "warning: {} has no {TRUTH_TRAJ}: the map is scored in its own frame \
+             (--assoc places it on the truth first)",
+            a.truth.display()
+        );
     }
     let mut report = evaluate(
         &truth_map,
