@@ -258,8 +258,10 @@ impl GraphSlam {
         self.pose
     }
 
-    /// Ends the run. When this run closed its loop (or found itself on its
-    /// map again after drifting), the detections left unmatched in real
+    /// Ends the run. Landmarks mapped again after relocalisation gave up are
+    /// first fitted back onto the earlier map where they clearly fit
+    /// (`remap.rs`). When this run closed its loop (or found itself on its
+    /// map again after drifting, or merged such landmarks), the detections left unmatched in real
     /// time are matched again from the poses as they now stand, within the
     /// χ² [`FINAL_GATE`]; every pose and landmark is optimised once more
     /// with all sightings, the laps driven on the fixed map included; and
