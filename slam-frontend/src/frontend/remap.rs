@@ -22,6 +22,12 @@ pub(super) struct Remapped {
     pub landmark: usize,
 }
 
+/// Bound on the search's work (pairs of earlier landmarks looked at, plus
+/// landmark distances computed to count each fit's agreement), far above
+/// MRCLAM's batches (a few million): a batch of hundreds of cones on a
+/// track must not stall the end of the run.
+const MAX_WORK: usize = 30_000_000;
+
 /// Fits turned further apart than this (rad) are different fits.
 const DISTINCT_TURN: f64 = 0.2;
 
@@ -127,12 +133,16 @@ fn fit_shape(old: &[Vector2<f64>], new: &[Vector2<f64>]) -> Option<SE2> {
             .count()
     };
     let mut fits: Vec<(SE2, usize)> = Vec::new();
+    // Past the bound the search gives up rather than take a fit it could
+    // not show clear.
+    let mut work = 0usize;
     for (i, a) in new.iter().enumerate() {
         for b in &new[i + 1..] {
             let length = (b - a).norm();
             if length < BASELINE {
                 continue;
             }
+            work += old.len() * old.len();
             for (j, ma) in old.iter().enumerate() {
                 for (k, mb) in old.iter().enumerate() {
                     if j == k || ((mb - ma).norm() - length).abs() > 2.0 * AGREE {
@@ -141,6 +151,10 @@ fn fit_shape(old: &[Vector2<f64>], new: &[Vector2<f64>]) -> Option<SE2> {
                     let Some(c) = two_point(a, b, ma, mb) else {
                         continue;
                     };
+                    work += new.len() * old.len();
+                    if work > MAX_WORK {
+                        return None;
+                    }
                     fits.push((c, agreeing(&c)));
                 }
             }
@@ -224,6 +238,18 @@ mod tests {
         let found = fit_shape(&old, &new).expect("a clear fit");
         let back = found.compose(&off);
         assert!(back.t.norm() < 0.05 && back.theta.abs() < 0.02, "{back:?}");
+    }
+
+    #[test]
+    fn a_batch_of_hundreds_of_cones_is_not_searched_without_end() {
+        // Two rows of 300 cones 1.5 m apart, mapped again 0.7 m along: the
+        // search stops at its bound and takes nothing.
+        let rows = |shift: f64| -> Vec<Vector2<f64>> {
+            (0..600)
+                .map(|i| Vector2::new(1.5 * (i / 2) as f64 + shift, 3.0 * (i % 2) as f64))
+                .collect()
+        };
+        assert!(fit_shape(&rows(0.0), &rows(0.7)).is_none());
     }
 
     #[test]
