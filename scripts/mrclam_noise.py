@@ -61,11 +61,40 @@ def robust_sigma(xs):
     return m, 1.4826 * statistics.median([abs(x - m) for x in xs])
 
 
+# The robots answer their commands this late (s): the graph learns a scan
+# latency of 153-198 ms on four of Dataset 6's robots (docs/real-data.md).
+LAG = 0.15
+
+
+def turn_errors(odo, truth, times, window=1.0):
+    """(commanded |turn|, heading error) over windows of `window` s, the
+    true headings read LAG later than the commands."""
+    rows = []
+    k = 0
+    while k < len(odo) - 1:
+        t0 = odo[k][0]
+        j, turn, turned = k, 0.0, 0.0
+        while j + 1 < len(odo) and odo[j + 1][0] - t0 < window:
+            dt = odo[j + 1][0] - odo[j][0]
+            turn += odo[j][2] * dt
+            turned += abs(odo[j][2]) * dt
+            j += 1
+        if j == k:
+            k += 1
+            continue
+        p0, p1 = pose_at(truth, times, t0 + LAG), pose_at(truth, times, odo[j][0] + LAG)
+        k = j
+        if p0 is not None and p1 is not None:
+            rows.append((turned, wrap(p1[2] - p0[2]) - turn))
+    return rows
+
+
 def main(folder):
     subject = {int(b): int(s) for s, b in table(os.path.join(folder, "Barcodes.dat"))}
     landmarks = {int(r[0]): (r[1], r[2]) for r in table(os.path.join(folder, "Landmark_Groundtruth.dat"))}
     dr, db, ranges, fov = [], [], [], []
     dv, dw, speeds = [], [], []
+    turns = []
     per_frame = []
     ceiling = {}
     scale = {}
@@ -92,6 +121,7 @@ def main(folder):
             ceiling[robot] = (wrong + (min(chi2, key=chi2.get) != s), total + 1)
         per_frame.extend(frames.values())
         odo = table(os.path.join(folder, f"Robot{robot}_Odometry.dat"))
+        turns.extend(turn_errors(odo, truth, times))
         step = 67  # about 1 s of odometry
         for k in range(0, len(odo) - step, step):
             t0, t1 = odo[k][0], odo[k + step][0]
@@ -132,14 +162,27 @@ def main(folder):
     print(f"landmarks per camera frame: mean {statistics.mean(per_frame):.2f}")
     mv, sv = robust_sigma(dv)
     mw, sw = robust_sigma(dw)
-    for robot, (sv, vv, sw, ww) in sorted(scale.items()):
+    for robot, (vs, vv, ws, ww) in sorted(scale.items()):
         print(f"robot {robot}: true = scale × commanded (least squares over 1 s): "
-              f"speed {sv / vv:.3f}, yaw rate {sw / ww:.3f}")
+              f"speed {vs / vv:.3f}, yaw rate {ws / ww:.3f}")
     for robot, (wrong, total) in sorted(ceiling.items()):
         print(f"robot {robot}: with Vicon's pose and the true map, {100 * wrong / total:.1f}% of "
               f"{total} detections are nearer (χ²) to another landmark than to their own")
     print(f"odometry over 1 s: speed error {mv:+.4f} σ {sv:.4f} m/s (mean |v| {statistics.mean(speeds):.3f}); "
           f"yaw-rate error {mw:+.4f} σ {sw:.4f} rad/s")
+    # A turn's heading error, beyond the yaw rate's: RMS by how far the
+    # commands turned in 1 s; its variance grows as the angle turned.
+    for lo, hi in [(0.0, 0.02), (0.02, 0.1), (0.1, 0.2), (0.2, 0.4), (0.4, 10.0)]:
+        sel = [(a, e) for a, e in turns if lo <= a < hi]
+        if len(sel) < 20:
+            continue
+        rms = math.sqrt(sum(e * e for _, e in sel) / len(sel))
+        mean = statistics.mean(a for a, _ in sel)
+        print(f"commanded |turn| {lo}-{hi} rad in 1 s (mean {mean:.3f}), true heading {LAG} s later: "
+              f"n={len(sel)} heading error RMS {rms:.4f} rad")
+    turning = [(a, e) for a, e in turns if a >= 0.02]
+    sigma = math.sqrt(sum(e * e for _, e in turning) / sum(a for a, _ in turning))
+    print(f"turn_sigma (heading error² per rad turned, windows turning ≥ 0.02 rad): {sigma:.3f} rad/√rad")
 
 
 if __name__ == "__main__":

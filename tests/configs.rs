@@ -130,6 +130,7 @@ fn bad_files_name_the_key() {
             "sideslip_sigma = -0.01",
             "sideslip_sigma must be finite and ≥ 0",
         ),
+        ("turn_sigma = -0.1", "turn_sigma must be finite and ≥ 0"),
         (
             "detection_probability = 1.5",
             "detection_probability must be in (0, 1]",

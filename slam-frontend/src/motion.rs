@@ -23,7 +23,8 @@ pub enum MotionModel {
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub enum MotionNoise {
     /// Velocity model: independent errors on speed (σ plus a fraction of
-    /// the speed) and on the yaw rate.
+    /// the speed) and on the yaw rate, and a heading error that grows with
+    /// the turn itself.
     Velocity {
         /// Speed σ (m/s).
         speed_sigma: f64,
@@ -31,6 +32,11 @@ pub enum MotionNoise {
         speed_sigma_relative: f64,
         /// Yaw-rate σ (rad/s).
         yaw_rate_sigma: f64,
+        /// Heading σ per √rad turned (rad/√rad): the variance grows by
+        /// `turn_sigma² · |turn|`, independent from one turn to the next,
+        /// as when a robot's commanded spins are overstated or understated.
+        /// 0 for a gyro, whose error is its bias (`yaw_rate_sigma`).
+        turn_sigma: f64,
         /// Slip angle σ per m/s² of lateral acceleration (rad per m/s²):
         /// in a turn the car moves sideways, which wheel speed and gyro
         /// odometry do not see.
@@ -113,6 +119,9 @@ pub struct Odometry {
     /// Σ dt² over the steps since the last take: white noise of σ per
     /// step integrates to a heading variance of σ² Σ dt².
     step_time2: f64,
+    /// Heading variance from the turns since the last take (the
+    /// velocity model's `turn_sigma`).
+    turn_variance: f64,
     /// ∂ of the motion's translation with respect to the sideslip (m per
     /// rad per m/s²), over the steps since the last take.
     slip_jacobian: Vector2<f64>,
@@ -135,6 +144,7 @@ impl Odometry {
             delta: SE2::identity(),
             delta_cov: Matrix3::zeros(),
             step_time2: 0.0,
+            turn_variance: 0.0,
             slip_jacobian: Vector2::zeros(),
             distance: 0.0,
             scan_latency: 0.0,
@@ -248,6 +258,14 @@ impl Odometry {
         let step_cov = self.step_cov(v, dt, &step);
         self.delta_cov = f * self.delta_cov * f.transpose()
             + rot * step_cov * rot.transpose() * CORRELATED_STEPS;
+        // The turn's own error adds to the heading alone (rotating the
+        // step into delta's frame leaves the heading as it is), and is not
+        // a bias: it does not scale as correlated steps.
+        if let MotionNoise::Velocity { turn_sigma, .. } = self.noise {
+            let turned = turn_sigma * turn_sigma * step.theta.abs();
+            self.delta_cov[(2, 2)] += turned;
+            self.turn_variance += turned;
+        }
         self.delta = self.delta.compose(&step);
         self.step_time2 += dt * dt;
         self.distance += (v * dt).abs();
@@ -262,6 +280,7 @@ impl Odometry {
                 speed_sigma_relative,
                 yaw_rate_sigma,
                 sideslip_sigma,
+                ..
             } => {
                 // First order in dt: the step moves v·dt ahead and turns ω·dt.
                 let mut g = SMatrix::<f64, 3, 2>::zeros();
@@ -295,6 +314,7 @@ impl Odometry {
         self.delta = SE2::identity();
         self.delta_cov = Matrix3::zeros();
         self.step_time2 = 0.0;
+        self.turn_variance = 0.0;
         self.slip_jacobian = Vector2::zeros();
         out
     }
@@ -309,6 +329,13 @@ impl Odometry {
     /// (read it before taking).
     pub fn step_time2(&self) -> f64 {
         self.step_time2
+    }
+
+    /// Heading variance from the turns since the last [`Odometry::take`]
+    /// (the velocity model's `turn_sigma`; read it before taking): an error
+    /// of each turn, not of a bias the full optimisation estimates.
+    pub fn turn_variance(&self) -> f64 {
+        self.turn_variance
     }
 
     /// The motion since the last [`Odometry::take`], without resetting it.
@@ -442,6 +469,7 @@ mod tests {
                 speed_sigma: 0.1,
                 speed_sigma_relative: 0.01,
                 yaw_rate_sigma: 0.02,
+                turn_sigma: 0.05,
                 sideslip_sigma: 0.01,
             },
             MotionNoise::RotTransRot {
@@ -475,11 +503,50 @@ mod tests {
         }
     }
 
+    /// Heading variance after spinning on the spot by `turn` rad at 1 rad/s
+    /// in `steps` steps, then driving 2 m straight, with the turn noise
+    /// alone; and what `turn_variance` said before the take.
+    fn spin_then_drive(turn: f64, steps: usize) -> (f64, f64) {
+        let noise = MotionNoise::Velocity {
+            speed_sigma: 1e-9,
+            speed_sigma_relative: 0.0,
+            yaw_rate_sigma: 1e-9,
+            turn_sigma: 0.1,
+            sideslip_sigma: 0.0,
+        };
+        let mut odometry = Odometry::new(MotionModel::Unicycle, noise);
+        let dt = turn / steps as f64;
+        for k in 0..steps {
+            odometry.record(k as f64 * dt, (0.0, None), 1.0, None, Correction::NONE);
+        }
+        odometry.record(turn, (2.0, None), 0.0, None, Correction::NONE);
+        odometry.record(turn + 1.0, (2.0, None), 0.0, None, Correction::NONE);
+        let said = odometry.turn_variance();
+        let (_, cov) = odometry.take();
+        assert_eq!(odometry.turn_variance(), 0.0, "reset by take");
+        (cov[(2, 2)], said)
+    }
+
+    #[test]
+    fn a_turn_adds_heading_variance_in_proportion_to_the_angle_turned() {
+        // σ² = 0.1² per rad turned, whatever the steps; driving straight
+        // adds none.
+        for (turn, steps) in [(1.0, 50), (1.0, 500), (3.0, 150)] {
+            let (variance, said) = spin_then_drive(turn, steps);
+            assert!(
+                (variance - 0.01 * turn).abs() < 1e-9,
+                "{turn} {steps}: {variance}"
+            );
+            assert!((said - variance).abs() < 1e-9);
+        }
+    }
+
     fn constant_turn(latency: f64) -> Odometry {
         let noise = MotionNoise::Velocity {
             speed_sigma: 0.1,
             speed_sigma_relative: 0.0,
             yaw_rate_sigma: 0.01,
+            turn_sigma: 0.0,
             sideslip_sigma: 0.0,
         };
         Odometry::new(MotionModel::Unicycle, noise).with_scan_latency(latency)

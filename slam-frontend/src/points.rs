@@ -302,6 +302,7 @@ impl Clustered {
             speed_sigma: 0.0,
             speed_sigma_relative: 0.0,
             yaw_rate_sigma: 0.0,
+            turn_sigma: 0.0,
             sideslip_sigma: 0.0,
         };
         Self {

@@ -38,6 +38,12 @@ pub struct FrontEndConfig {
     /// The yaw rate's white noise alone (rad/s). The full optimisation
     /// estimates the bias and weighs the integrated headings by this.
     pub yaw_rate_noise: f64,
+    /// Heading σ per √rad turned (rad/√rad), an error of each turn rather
+    /// than a bias: the heading's variance grows by `turn_sigma² · |turn|`,
+    /// and the full optimisation weighs the headings by it beside the yaw
+    /// rate's white noise. 0 for a gyro; a robot whose odometry is its
+    /// commanded velocity needs it (configs/mrclam.toml).
+    pub turn_sigma: f64,
     /// The random walk of the yaw-rate bias (rad/s/√s), the gyro's bias
     /// instability: the full optimisation and the smoother let the bias
     /// drift this much. It is the least assumed: where a loop's solved
@@ -141,6 +147,7 @@ impl Default for FrontEndConfig {
             speed_sigma_relative: 0.03,
             yaw_rate_sigma: 0.02,
             yaw_rate_noise: 0.005,
+            turn_sigma: 0.0,
             rot_trans_rot: None,
             yaw_rate_bias_walk: 1e-5,
             learn_yaw_rate_bias_walk: true,
@@ -264,6 +271,7 @@ impl FrontEndConfig {
             ("yaw_rate_sigma", self.yaw_rate_sigma, Positive),
             ("relocalise_sigma", self.relocalise_sigma, NonNegative),
             ("yaw_rate_noise", self.yaw_rate_noise, Positive),
+            ("turn_sigma", self.turn_sigma, NonNegative),
             ("yaw_rate_bias_walk", self.yaw_rate_bias_walk, NonNegative),
             ("sideslip_sigma", self.sideslip_sigma, NonNegative),
             ("scan_latency", self.scan_latency, Below1),
@@ -328,6 +336,7 @@ impl FrontEndConfig {
                 speed_sigma: self.speed_sigma,
                 speed_sigma_relative: self.speed_sigma_relative,
                 yaw_rate_sigma: self.yaw_rate_sigma,
+                turn_sigma: self.turn_sigma,
                 sideslip_sigma: self.sideslip_sigma,
             },
         }

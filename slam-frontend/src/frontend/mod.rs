@@ -352,7 +352,11 @@ impl GraphSlam {
         }
         // Predict the pose from the last keyframe.
         let previous = self.pose;
-        let steps = (self.motion.step_time2(), self.motion.slip_jacobian());
+        // The heading's variance beyond the bias the full optimisation
+        // estimates: the yaw rate's white noise and the turns' own error.
+        let white = self.config.yaw_rate_noise.powi(2) * self.motion.step_time2()
+            + self.motion.turn_variance();
+        let steps = (white, self.motion.slip_jacobian());
         let (delta, delta_cov) = self.motion.take();
         let (pred, pred_cov) = compose_with_cov(&previous, &self.pose_cov, &delta, &delta_cov);
         self.drift = compose_with_cov(&self.drift.0, &self.drift.1, &delta, &delta_cov);

@@ -59,14 +59,15 @@ impl GraphSlam {
     }
 
     /// Makes the scan's pose the current one and a keyframe, tied to the
-    /// last by the odometry (its Σ dt² and sideslip Jacobian, integrated
-    /// with the correction `used`); returns its index.
+    /// last by the odometry (its heading variance beyond the yaw-rate bias
+    /// and its sideslip Jacobian, integrated with the correction `used`);
+    /// returns its index.
     pub(super) fn push_keyframe(
         &mut self,
         t: f64,
         (pose, pose_cov): (SE2, Matrix3<f64>),
         (delta, delta_cov): (SE2, Matrix3<f64>),
-        (step_time2, slip_jacobian): (f64, Vector2<f64>),
+        (heading_variance, slip_jacobian): (f64, Vector2<f64>),
         used: Correction,
     ) -> usize {
         self.pose = pose;
@@ -79,7 +80,7 @@ impl GraphSlam {
                 information: odometry_information(&delta_cov),
                 dt: t - self.poses[keyframe - 1].t,
                 yaw_rate_bias: used.yaw_rate_bias,
-                heading_variance: self.config.yaw_rate_noise.powi(2) * step_time2,
+                heading_variance,
                 slip_jacobian,
                 slip_made: slip_jacobian * used.sideslip,
             });
