@@ -95,6 +95,7 @@ def main(folder):
     dr, db, ranges, fov = [], [], [], []
     dv, dw, speeds = [], [], []
     turns = []
+    biases = {}
     per_frame = []
     ceiling = {}
     scale = {}
@@ -122,6 +123,8 @@ def main(folder):
         per_frame.extend(frames.values())
         odo = table(os.path.join(folder, f"Robot{robot}_Odometry.dat"))
         turns.extend(turn_errors(odo, truth, times))
+        long = turn_errors(odo, truth, times, window=10.0)
+        biases[robot] = statistics.mean(e / 10.0 for _, e in long)
         step = 67  # about 1 s of odometry
         for k in range(0, len(odo) - step, step):
             t0, t1 = odo[k][0], odo[k + step][0]
@@ -183,6 +186,9 @@ def main(folder):
     turning = [(a, e) for a, e in turns if a >= 0.02]
     sigma = math.sqrt(sum(e * e for _, e in turning) / sum(a for a, _ in turning))
     print(f"turn_sigma (heading error² per rad turned, windows turning ≥ 0.02 rad): {sigma:.3f} rad/√rad")
+    # A bias is what stays over the whole run: the mean over 10 s windows.
+    print("yaw-rate bias (mean error over 10 s windows) by robot: "
+          + ", ".join(f"{r}: {b:+.4f}" for r, b in sorted(biases.items())) + " rad/s")
 
 
 if __name__ == "__main__":

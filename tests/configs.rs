@@ -132,6 +132,10 @@ fn bad_files_name_the_key() {
         ),
         ("turn_sigma = -0.1", "turn_sigma must be finite and ≥ 0"),
         (
+            "yaw_rate_bias_sigma = 0.0",
+            "yaw_rate_bias_sigma must be finite and positive",
+        ),
+        (
             "detection_probability = 1.5",
             "detection_probability must be in (0, 1]",
         ),

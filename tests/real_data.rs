@@ -129,9 +129,9 @@ fn every_estimator_maps_an_imported_mrclam_robot() {
     let Some(dataset) = dataset6() else { return };
     let dir = std::env::temp_dir().join(format!("cairn-real-{}", std::process::id()));
     let _ = std::fs::remove_dir_all(&dir);
-    let said = import(&dataset, "3", &dir);
+    let said = import(&dataset, "4", &dir);
     assert!(
-        said.contains("4350 detections (2 misread barcodes)"),
+        said.contains("2026 detections (3 misread barcodes)"),
         "{said}"
     );
     for estimator in ["graph", "ekf", "fastslam1", "fastslam2"] {
@@ -144,23 +144,24 @@ fn every_estimator_maps_an_imported_mrclam_robot() {
         let report = evaluate(&dir, &map, &traj, &assoc);
         let number = |key: &str| report[key].as_f64().unwrap_or(f64::NAN);
         eprintln!("{estimator}: {report}");
-        // Every detection scored, some landmarks on true ones (today:
-        // graph 13, EKF-SLAM 8, FastSLAM 1.0 and 2.0 9 of 15), ATE 0.14,
-        // 0.99, 1.60 and 2.53 m, association 78, 29, 35 and 23%. Regression
-        // guards only. (Robot 4 ran here until the turn noise and lag of
-        // configs/mrclam.toml; the graph and EKF-SLAM now fail on it:
-        // docs/real-data.md, Spins.)
-        assert_eq!(number("detections"), 4350.0, "{estimator}");
+        // Every detection scored, some landmarks on true ones, a bounded
+        // trajectory (integrating the commanded velocities: 2.05 m).
+        // Regression guards near today's results: graph 9 of 15, ATE
+        // 0.85 m, 83% right; the filters 2-4 of 15, ATE 2.1-3.9 m, 26-30%.
+        // On this robot the filters lost a little with the turn noise of
+        // configs/mrclam.toml (FastSLAM 1.0 was at 1.97 m and 38%), while
+        // over all robots they gained (docs/real-data.md, Spins).
+        assert_eq!(number("detections"), 2026.0, "{estimator}");
         let on_landmarks = number("landmarks") - number("phantom");
-        assert!(on_landmarks >= 5.0, "{estimator}: {report}");
-        assert!(number("ate") < 3.0, "{estimator}: {report}");
+        assert!(on_landmarks >= 2.0, "{estimator}: {report}");
+        assert!(number("ate") < 4.5, "{estimator}: {report}");
         assert!(
-            number("association_accuracy") > 0.2,
+            number("association_accuracy") > 0.24,
             "{estimator}: {report}"
         );
     }
     // The batch smoother given the barcodes maps every landmark (today
-    // 0.093 m aligned on this robot; the bound is a regression guard), and
+    // 0.129 m aligned on this robot; the bound is a regression guard), and
     // its graph solves again from the g2o file at no lower χ².
     let g2o = dir.join("s.g2o");
     let [map, traj, assoc] = smooth(&dir, &["--g2o-out", s(&g2o)]);
@@ -264,18 +265,17 @@ fn a_config_file_is_checked_and_its_values_overridden() {
 
 /// Every Dataset 6 robot, graph SLAM with maximum likelihood: after the
 /// stretches where the robots spin or see nothing for up to a minute, the
-/// front end relocalises on its map instead of matching one detection
-/// through a wide gate. A wrong fit early in a run still leaves a map in
-/// pieces (today robot 4: ATE 4.46 m, 2 of 15 mapped; robot 1: 2.19 m),
-/// so the bounds are on the five robots together: regression guards a
-/// little past today's results (26 phantoms, 43 of 75 true landmarks
-/// mapped, 59.4% of detections right; docs/real-data.md), far from the
-/// issue's targets.
+/// front end finds itself on its map again instead of matching one
+/// detection through a wide gate (robots 1 and 2 ended 3.5 and 5.3 m off
+/// before; robot 4 failed with the turn noise and lag of configs/mrclam.toml
+/// until its yaw-rate bias had a tight prior). The bounds are regression
+/// guards a little past today's results, scored one-to-one (ATE
+/// 0.19–0.85 m, 9–14 of 15 true landmarks mapped, 0–5 phantoms, 56–85% of
+/// detections right; docs/real-data.md), short of the targets.
 #[test]
 fn the_graph_front_end_finds_itself_again_on_every_robot() {
     let Some(dataset) = dataset6() else { return };
     let dir = std::env::temp_dir().join(format!("cairn-reloc-{}", std::process::id()));
-    let (mut phantoms, mut mapped, mut right) = (0.0, 0.0, 0.0);
     for robot in 1..=5 {
         let _ = std::fs::remove_dir_all(&dir);
         let robot = robot.to_string();
@@ -290,15 +290,14 @@ fn the_graph_front_end_finds_itself_again_on_every_robot() {
         let report = evaluate(&dir, &map, &traj, &assoc);
         let number = |key: &str| report[key].as_f64().unwrap_or(f64::NAN);
         eprintln!("robot {robot}: {report}");
-        assert!(number("ate") < 5.0, "robot {robot}: {report}");
-        assert!(number("phantom") <= 16.0, "robot {robot}: {report}");
-        phantoms += number("phantom");
-        mapped += 15.0 - number("missed");
-        right += number("association_accuracy") / 5.0;
+        assert!(number("ate") < 1.2, "robot {robot}: {report}");
+        assert!(number("missed") <= 7.0, "robot {robot}: {report}");
+        assert!(number("phantom") <= 6.0, "robot {robot}: {report}");
+        assert!(
+            number("association_accuracy") > 0.5,
+            "robot {robot}: {report}"
+        );
     }
-    assert!(phantoms <= 32.0, "{phantoms} phantoms");
-    assert!(mapped >= 38.0, "{mapped} true landmarks mapped");
-    assert!(right > 0.55, "{right} of detections right");
     let _ = std::fs::remove_dir_all(&dir);
 }
 
@@ -345,8 +344,8 @@ fn a_recording_without_a_trajectory_is_placed_by_its_associations() {
 /// gives up and the landmarks in view are mapped again, 4.8 m and 0.9 rad
 /// off. At the end of the run that batch is fitted onto the earlier map and
 /// merged into it (16 landmarks, 2 phantoms, 81% of detections right when
-/// the merge came; 30, 15 and 64% without it; today, with the turn noise
-/// of configs/mrclam.toml, 16, 3 and 75%). The bounds are regression
+/// the merge came; 30, 15 and 64% without it; today, with the odometry
+/// model of configs/mrclam.toml, 16, 3 and 78%). The bounds are regression
 /// guards.
 #[test]
 fn landmarks_mapped_again_after_the_robot_lost_itself_are_merged() {
@@ -369,7 +368,7 @@ fn landmarks_mapped_again_after_the_robot_lost_itself_are_merged() {
 /// turned (`turn_sigma`) and that the robot answers its commands late
 /// (`scan_latency`), the gates widen through the spins and the landmarks
 /// seen during them are matched, not mapped again: today all 15 landmarks,
-/// no phantom and 98.9% of detections right (44 landmarks, 31 phantoms and
+/// no phantom and 99.0% of detections right (44 landmarks, 31 phantoms and
 /// 39.8% without the two). The bounds are regression guards.
 #[test]
 fn a_robot_spinning_on_commanded_turns_maps_each_landmark_once() {

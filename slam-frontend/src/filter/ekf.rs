@@ -64,7 +64,7 @@ impl EkfSlam {
         }
         // The bias is known to the yaw-rate σ that covers it; the heading
         // then takes the yaw rate's white noise alone.
-        p[(BIAS, BIAS)] = config.yaw_rate_sigma.powi(2);
+        p[(BIAS, BIAS)] = config.yaw_rate_bias_prior().powi(2);
         let walk = config.yaw_rate_bias_walk;
         let config = FrontEndConfig {
             yaw_rate_sigma: config.yaw_rate_noise,

@@ -35,6 +35,11 @@ pub struct FrontEndConfig {
     pub speed_sigma_relative: f64,
     /// Yaw-rate σ (rad/s), covering its bias.
     pub yaw_rate_sigma: f64,
+    /// Prior σ of the yaw-rate bias the estimators learn online (rad/s);
+    /// `yaw_rate_sigma` when not given. Commanded velocities carry almost
+    /// no bias, and a loose prior let a few seconds of a robot's spins
+    /// teach one that turned the heading through the next blind stretch.
+    pub yaw_rate_bias_sigma: Option<f64>,
     /// The yaw rate's white noise alone (rad/s). The full optimisation
     /// estimates the bias and weighs the integrated headings by this.
     pub yaw_rate_noise: f64,
@@ -146,6 +151,7 @@ impl Default for FrontEndConfig {
             speed_sigma: 0.1,
             speed_sigma_relative: 0.03,
             yaw_rate_sigma: 0.02,
+            yaw_rate_bias_sigma: None,
             yaw_rate_noise: 0.005,
             turn_sigma: 0.0,
             rot_trans_rot: None,
@@ -295,6 +301,9 @@ impl FrontEndConfig {
         if let MotionModel::Bicycle { wheelbase } = self.motion {
             checks.push(("motion.bicycle.wheelbase", wheelbase, Positive));
         }
+        if let Some(sigma) = self.yaw_rate_bias_sigma {
+            checks.push(("yaw_rate_bias_sigma", sigma, Positive));
+        }
         for alpha in self.rot_trans_rot.iter().flatten() {
             checks.push(("rot_trans_rot", *alpha, NonNegative));
         }
@@ -326,6 +335,12 @@ impl FrontEndConfig {
         } else {
             9.21
         }
+    }
+
+    /// Prior σ of the yaw-rate bias (rad/s): `yaw_rate_bias_sigma`, or
+    /// `yaw_rate_sigma` when that is not given.
+    pub fn yaw_rate_bias_prior(&self) -> f64 {
+        self.yaw_rate_bias_sigma.unwrap_or(self.yaw_rate_sigma)
     }
 
     /// The odometry noise model these settings describe.

@@ -153,7 +153,7 @@ pub struct GraphSlam {
 impl GraphSlam {
     /// A front end that starts mapping at the origin (or the log's `start`).
     pub fn new(config: FrontEndConfig) -> Self {
-        let window = window::Window::new(config.yaw_rate_sigma, config.sideslip_sigma);
+        let window = window::Window::new(config.yaw_rate_bias_prior(), config.sideslip_sigma);
         let colors = ColorRate::new(&config);
         let mut calibration = Calibration::default();
         calibration.yaw_rate_bias_walk = config.yaw_rate_bias_walk;
