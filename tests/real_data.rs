@@ -270,7 +270,7 @@ fn a_config_file_is_checked_and_its_values_overridden() {
 /// before; robot 4 failed with the turn noise and lag of configs/mrclam.toml
 /// until its yaw-rate bias had a tight prior). The bounds are regression
 /// guards a little past today's results, scored one-to-one (ATE
-/// 0.19–0.85 m, 9–14 of 15 true landmarks mapped, 0–5 phantoms, 56–85% of
+/// 0.18–0.85 m, 9–15 of 15 true landmarks mapped, 0–5 phantoms, 61–86% of
 /// detections right; docs/real-data.md), short of the targets.
 #[test]
 fn the_graph_front_end_finds_itself_again_on_every_robot() {
