@@ -31,6 +31,7 @@ fn every_shipped_config_reads_and_round_trips() {
     // A config that sets every optional part round-trips too.
     let config = FrontEndConfig {
         rot_trans_rot: Some([1e-3, 2e-5, 3e-3, 4e-4]),
+        yaw_rate_bias_sigma: Some(0.004),
         motion: cairn::slam::frontend::MotionModel::Bicycle { wheelbase: 1.53 },
         association: AssociationMethod::Jcbb,
         ..FrontEndConfig::default()
@@ -158,4 +159,18 @@ fn bad_files_name_the_key() {
         let err = FrontEndConfig::from_toml(text).unwrap_err().to_string();
         assert!(err.contains(field), "{text}: {err}");
     }
+}
+
+#[test]
+fn the_yaw_rate_bias_prior_is_its_own_or_the_yaw_rate_sigma() {
+    // A gyro's config leaves it out: the bias is as uncertain as the
+    // yaw rate (the simulator presets). Commanded velocities carry little
+    // bias: configs/mrclam.toml says so.
+    let standard = shipped("standard.toml");
+    assert_eq!(standard.yaw_rate_bias_sigma, None);
+    assert_eq!(standard.yaw_rate_bias_prior(), standard.yaw_rate_sigma);
+    let mrclam = shipped("mrclam.toml");
+    assert_eq!(mrclam.yaw_rate_bias_prior(), 0.005);
+    assert!(mrclam.yaw_rate_bias_prior() < mrclam.yaw_rate_sigma);
+    assert!(mrclam.turn_sigma > 0.0 && standard.turn_sigma == 0.0);
 }
