@@ -133,6 +133,14 @@ fn bad_files_name_the_key() {
         ),
         ("turn_sigma = -0.1", "turn_sigma must be finite and ≥ 0"),
         (
+            "hindsight_rounds = 0",
+            "hindsight_rounds must be from 1 to 20",
+        ),
+        (
+            "hindsight_rounds = 21",
+            "hindsight_rounds must be from 1 to 20",
+        ),
+        (
             "yaw_rate_bias_sigma = 0.0",
             "yaw_rate_bias_sigma must be finite and positive",
         ),

@@ -123,6 +123,12 @@ pub struct FrontEndConfig {
     /// with tracking association, scan by scan with the other methods
     /// ([`GraphSlam::finish`](super::GraphSlam::finish)).
     pub hindsight: bool,
+    /// Rounds of that matching, each followed by an optimisation, until a
+    /// round changes no match (1 to 20). Where landmarks stand closer than
+    /// the detector's noise along the line of sight (MRCLAM's tubes), the
+    /// matches and the map they give settle over several rounds; where
+    /// they stand apart, one round leaves nothing to change.
+    pub hindsight_rounds: u32,
     /// Sightings before a tentative landmark joins the map.
     pub confirm_after: u32,
     /// Landmarks that return after leaving the view, needed in one scan to
@@ -169,6 +175,7 @@ impl Default for FrontEndConfig {
             detection_probability: 0.9,
             false_positives: 0.3,
             hindsight: true,
+            hindsight_rounds: 1,
             confirm_after: 3,
             loop_min_returned: 4,
             localise_after_loop: true,
@@ -190,7 +197,13 @@ enum Rule {
     Angle,
     /// Finite and above this.
     Above(f64),
+    /// A count from 1 to this.
+    Count(u32),
 }
+
+/// The most rounds of matching in hindsight a config may ask for: each is a
+/// final optimisation.
+const MAX_HINDSIGHT_ROUNDS: u32 = 20;
 
 impl Rule {
     fn holds(self, v: f64) -> bool {
@@ -202,6 +215,7 @@ impl Rule {
                 Rule::Below1 => (0.0..1.0).contains(&v),
                 Rule::Angle => v > 0.0 && v <= std::f64::consts::TAU,
                 Rule::Above(min) => v > min,
+                Rule::Count(max) => (1.0..=f64::from(max)).contains(&v),
             }
     }
 
@@ -213,6 +227,7 @@ impl Rule {
             Rule::Below1 => "in [0, 1)".into(),
             Rule::Angle => "in (0, 2π] (radians)".into(),
             Rule::Above(min) => format!("finite and above {min}"),
+            Rule::Count(max) => format!("from 1 to {max}"),
         }
     }
 }
@@ -297,6 +312,11 @@ impl FrontEndConfig {
             ),
             ("false_positives", self.false_positives, NonNegative),
             ("confirm_after", f64::from(self.confirm_after), Above(0.5)),
+            (
+                "hindsight_rounds",
+                f64::from(self.hindsight_rounds),
+                Count(MAX_HINDSIGHT_ROUNDS),
+            ),
         ];
         if let MotionModel::Bicycle { wheelbase } = self.motion {
             checks.push(("motion.bicycle.wheelbase", wheelbase, Positive));

@@ -269,7 +269,8 @@ impl GraphSlam {
     /// [`FrontEndConfig::hindsight`] is off, every detection is then
     /// matched again (with tracking association along its tracker id's
     /// chain of sightings, with the other methods scan by scan) and the map
-    /// optimised once more. Not real-time: its time is reported apart from
+    /// optimised once more, for [`FrontEndConfig::hindsight_rounds`] or
+    /// until the matches settle. Not real-time: its time is reported apart from
     /// the loop closures ([`Timing::final_optimisation`]). A failed solve
     /// keeps the estimate as it was. docs/bench/frontend-options.md has the
     /// measurements behind each step.
@@ -293,8 +294,7 @@ impl GraphSlam {
         if hindsight && result.is_ok() {
             self.widen_noise_to_residuals();
             self.drop_surplus_landmarks();
-            self.associate_in_hindsight(&scans, gate);
-            result = self.optimise(optimise::Batch::last(true));
+            result = self.settle_in_hindsight(&scans, gate);
             // Judged again on the colours of the detections as now matched.
             self.drop_clutter();
         }
