@@ -18,9 +18,9 @@ const SEEN_WHOLE: f64 = 0.1;
 /// Where the detector misses often, a cluster is seen whole in fewer scans:
 /// at the MRCLAM camera's p = 0.5 a group of three tubes 0.15–0.25 m apart
 /// is seen whole in about p³ = 1/8 of its scans, and the fixed share had
-/// dropped one tube of every such group (Dataset 6: 57 → 64 of the five
+/// dropped one tube of every such group (Dataset 6: 57 → 62 of the five
 /// robots' 75 landmarks mapped with maximum likelihood, association 70.8 →
-/// 74.1%). A quarter of pᵏ leaves every cluster of up to four cones on the
+/// 73.8%). A quarter of pᵏ leaves every cluster of up to four cones on the
 /// simulator presets (p ≥ 0.8) at [`SEEN_WHOLE`].
 const SEEN_WHOLE_SHARE: f64 = 0.25;
 
