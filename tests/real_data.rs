@@ -56,7 +56,16 @@ fn s(p: &Path) -> &str {
 /// `fs-slam` on the imported log in `dir` with `configs/mrclam.toml` and
 /// `options`, its outputs in `dir` as (map, trajectory, associations).
 fn slam(dir: &Path, options: &[&str]) -> (Output, [PathBuf; 3]) {
-    let config = Path::new(env!("CARGO_MANIFEST_DIR")).join("configs/mrclam.toml");
+    slam_with(dir, &shipped_config(), options)
+}
+
+/// `configs/mrclam.toml`.
+fn shipped_config() -> PathBuf {
+    Path::new(env!("CARGO_MANIFEST_DIR")).join("configs/mrclam.toml")
+}
+
+/// [`slam`] with the config file `config`.
+fn slam_with(dir: &Path, config: &Path, options: &[&str]) -> (Output, [PathBuf; 3]) {
     let outputs = [
         dir.join("map.csv"),
         dir.join("traj.tum"),
@@ -64,7 +73,7 @@ fn slam(dir: &Path, options: &[&str]) -> (Output, [PathBuf; 3]) {
     ];
     let [map, traj, assoc] = &outputs;
     let log = dir.join("log.jsonl");
-    let mut args = vec!["fs-slam", s(&log), "--config", s(&config)];
+    let mut args = vec!["fs-slam", s(&log), "--config", s(config)];
     args.extend_from_slice(options);
     args.extend([
         "--map-out",
@@ -75,6 +84,17 @@ fn slam(dir: &Path, options: &[&str]) -> (Output, [PathBuf; 3]) {
         s(assoc),
     ]);
     (cairn(&args), outputs)
+}
+
+/// Graph SLAM with maximum likelihood on `robot` of `dataset`, imported
+/// into a scratch folder named for `what`: the folder and `fs-eval`'s report.
+fn graph_ml(dataset: &Path, robot: &str, what: &str) -> (PathBuf, serde_json::Value) {
+    let dir = scratch(what);
+    import(dataset, robot, &dir);
+    let (o, [map, traj, assoc]) = slam(&dir, &["--estimator", "graph", "--association", "ml"]);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let report = evaluate(&dir, &map, &traj, &assoc);
+    (dir, report)
 }
 
 /// `fs-import mrclam` of `robot` of `dataset` into `dir`; what it said.
@@ -96,7 +116,7 @@ fn import(dataset: &Path, robot: &str, dir: &Path) -> String {
 /// `fs-smooth` of the imported log in `dir` given the barcodes, with
 /// `extra` options; its outputs in `dir` as (map, trajectory, associations).
 fn smooth(dir: &Path, extra: &[&str]) -> [PathBuf; 3] {
-    let config = Path::new(env!("CARGO_MANIFEST_DIR")).join("configs/mrclam.toml");
+    let config = shipped_config();
     let outputs = [
         dir.join("s.csv"),
         dir.join("s.tum"),
@@ -350,11 +370,7 @@ fn a_recording_without_a_trajectory_is_placed_by_its_associations() {
 #[test]
 fn landmarks_mapped_again_after_the_robot_lost_itself_are_merged() {
     let Some(dataset) = dataset1() else { return };
-    let dir = scratch("remapped");
-    import(&dataset, "1", &dir);
-    let (o, [map, traj, assoc]) = slam(&dir, &["--estimator", "graph", "--association", "ml"]);
-    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
-    let report = evaluate(&dir, &map, &traj, &assoc);
+    let (dir, report) = graph_ml(&dataset, "1", "remapped");
     let number = |key: &str| report[key].as_f64().unwrap_or(f64::NAN);
     assert!(number("phantom") <= 4.0, "{report}");
     assert!(number("association_accuracy") > 0.7, "{report}");
@@ -373,11 +389,7 @@ fn landmarks_mapped_again_after_the_robot_lost_itself_are_merged() {
 #[test]
 fn a_robot_spinning_on_commanded_turns_maps_each_landmark_once() {
     let Some(dataset) = dataset1() else { return };
-    let dir = scratch("spins");
-    import(&dataset, "2", &dir);
-    let (o, [map, traj, assoc]) = slam(&dir, &["--estimator", "graph", "--association", "ml"]);
-    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
-    let report = evaluate(&dir, &map, &traj, &assoc);
+    let (dir, report) = graph_ml(&dataset, "2", "spins");
     let number = |key: &str| report[key].as_f64().unwrap_or(f64::NAN);
     assert_eq!(number("missed"), 0.0, "{report}");
     assert!(number("phantom") <= 1.0, "{report}");
@@ -397,7 +409,7 @@ fn tubes_closer_than_the_noise_settle_over_rounds_of_matching() {
     let Some(dataset) = dataset6() else { return };
     let dir = scratch("rounds");
     import(&dataset, "3", &dir);
-    let shipped = Path::new(env!("CARGO_MANIFEST_DIR")).join("configs/mrclam.toml");
+    let shipped = shipped_config();
     let text = std::fs::read_to_string(&shipped).expect("the shipped config reads");
     assert!(text.contains("hindsight_rounds = 5"));
     let once = dir.join("once.toml");
@@ -407,21 +419,7 @@ fn tubes_closer_than_the_noise_settle_over_rounds_of_matching() {
     )
     .expect("writes");
     let accuracy = |config: &Path| {
-        let (map, traj, assoc) = (dir.join("m.csv"), dir.join("t.tum"), dir.join("a.csv"));
-        let o = cairn(&[
-            "fs-slam",
-            s(&dir.join("log.jsonl")),
-            "--config",
-            s(config),
-            "--association",
-            "scnn",
-            "--map-out",
-            s(&map),
-            "--traj-out",
-            s(&traj),
-            "--assoc-out",
-            s(&assoc),
-        ]);
+        let (o, [map, traj, assoc]) = slam_with(&dir, config, &["--association", "scnn"]);
         assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
         let report = evaluate(&dir, &map, &traj, &assoc);
         assert_eq!(report["phantom"].as_f64(), Some(0.0), "{report}");
