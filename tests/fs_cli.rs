@@ -503,3 +503,55 @@ fn fs_eval_without_associations_and_with_a_plot_it_cannot_write() {
     assert!(String::from_utf8_lossy(&o.stderr).contains(".svg or .png"));
     assert!(!pdf.exists());
 }
+
+/// `fs-eval --align` scores a map that turned as a whole on its shape: 20
+/// cones of a track, turned by 0.5 rad and shifted, match almost nothing in
+/// their own frame and every cone once placed.
+#[test]
+fn fs_eval_align_places_a_turned_map_on_the_truth() {
+    let dir = temp_dir("eval-align");
+    simulate_short_run(&dir, &[]);
+    let truth = std::fs::read_to_string(dir.join("truth_map.csv")).unwrap();
+    let lines: Vec<&str> = truth.lines().take(21).collect();
+    let (c, s0) = (0.5f64.cos(), 0.5f64.sin());
+    let mut turned = vec![lines[0].to_string()];
+    for line in &lines[1..] {
+        let mut f: Vec<String> = line.split(',').map(str::to_string).collect();
+        let (x, y): (f64, f64) = (f[1].parse().unwrap(), f[2].parse().unwrap());
+        f[1] = (c * x - s0 * y + 3.0).to_string();
+        f[2] = (s0 * x + c * y - 2.0).to_string();
+        turned.push(f.join(","));
+    }
+    let small = dir.join("small");
+    std::fs::create_dir_all(&small).unwrap();
+    std::fs::write(small.join("truth_map.csv"), lines.join("\n") + "\n").unwrap();
+    std::fs::copy(dir.join("truth_traj.tum"), small.join("truth_traj.tum")).unwrap();
+    let map = dir.join("turned.csv");
+    std::fs::write(&map, turned.join("\n") + "\n").unwrap();
+    let traj = dir.join("truth_traj.tum");
+    let score = |extra: &[&str]| {
+        let mut args = vec![
+            "fs-eval",
+            "--truth",
+            s(&small),
+            "--map",
+            s(&map),
+            "--traj",
+            s(&traj),
+        ];
+        args.extend(extra);
+        let o = cairn(&args);
+        assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+        o.stdout
+    };
+    let json = |out: Vec<u8>| serde_json::from_slice::<serde_json::Value>(&out).unwrap();
+    let unplaced = json(score(&["--json"]));
+    assert!(unplaced["phantom"].as_u64().unwrap() > 10, "{unplaced}");
+    let placed = json(score(&["--json", "--align"]));
+    assert_eq!(placed["phantom"].as_u64(), Some(0), "{placed}");
+    assert_eq!(placed["landmarks"].as_u64(), Some(20), "{placed}");
+    assert_eq!(placed["placed_by_alignment"].as_bool(), Some(true));
+    assert!(placed["map_rmse"].as_f64().unwrap() < 1e-6, "{placed}");
+    let table = String::from_utf8_lossy(&score(&["--align"])).to_string();
+    assert!(table.contains("its best rigid alignment"), "{table}");
+}

@@ -40,6 +40,11 @@ pub struct Report {
     /// was in its own frame.
     #[serde(skip_serializing_if = "std::ops::Not::not")]
     pub placed_by_associations: bool,
+    /// Whether the map and trajectory were placed on the truth by the map's
+    /// best rigid alignment first (`fs-eval --align`,
+    /// [`crate::placement::best_placement`]).
+    #[serde(skip_serializing_if = "std::ops::Not::not")]
+    pub placed_by_alignment: bool,
     /// Per colour (of the true cone): (colour, RMSE, matched landmarks).
     pub map_rmse_by_color: Vec<(String, f64, usize)>,
     /// Landmarks left without a true cone by the one-to-one matching:

@@ -5,8 +5,9 @@
 //!   drives;
 //! - [`sim`]: a seeded simulator writing the input log and its ground truth;
 //!   [`configs`]: what the estimators assume about its presets;
-//! - [`eval`], [`matching`], [`run`]: scoring a run against the truth, the
-//!   map matched to it one-to-one;
+//! - [`eval`], [`matching`], [`placement`], [`run`]: scoring a run against
+//!   the truth, the map matched to it one-to-one (after its best rigid
+//!   placement, where asked);
 //! - [`mrclam`]: an importer of the UTIAS Multi-Robot Cooperative
 //!   Localization and Mapping dataset (range/bearing landmark detections,
 //!   commanded velocities, Vicon ground truth);
@@ -19,6 +20,7 @@ pub mod course;
 pub mod eval;
 pub mod matching;
 pub mod mrclam;
+pub mod placement;
 pub mod run;
 pub mod sim;
 pub mod smoother;

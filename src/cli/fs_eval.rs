@@ -3,9 +3,10 @@
 use super::fs::{TRUTH_ASSOC, TRUTH_MAP, TRUTH_TRAJ, read_text};
 use super::{bad_input, file_name};
 use cairn::fs_tools::eval::{
-    Report, evaluate, latency_ms, one_to_one_accuracy, place, placement_by_associations,
-    position_errors,
+    MATCH_RADIUS, Report, evaluate, latency_ms, one_to_one_accuracy, place,
+    placement_by_associations, position_errors,
 };
+use cairn::fs_tools::placement::best_placement;
 use cairn::plot::{MapPlot, draw};
 use cairn::slam::Cone;
 use cairn::slam::files::{self, StampedPose};
@@ -40,6 +41,14 @@ pub struct EvalArgs {
     /// Timings written by `fs-slam --timing-out`.
     #[arg(long)]
     timing: Option<PathBuf>,
+    /// Score the map after its best rigid placement on the truth: the one
+    /// that matches the most landmarks within 1 m, found from the positions
+    /// alone (no associations), as the real-data targets count "mapped".
+    /// The trajectory moves with the map, so the ATE is then the placed
+    /// one's. Without it the map is scored in its own frame, or placed by
+    /// its associations where the truth has no trajectory.
+    #[arg(long)]
+    align: bool,
     /// Print JSON instead of a table.
     #[arg(long)]
     json: bool,
@@ -81,11 +90,14 @@ pub fn run_eval(a: EvalArgs) -> Result<(), super::CliError> {
         files::trajectory_from_tum(&read_text(&a.traj)?).map_err(bad_input(a.traj.display()))?;
     // Without a true trajectory the log had no start pose either: the
     // estimate is in its own frame, and the associations place it.
-    let placement = truth_traj
-        .is_none()
+    let positions = |cones: &[Cone]| cones.iter().map(|c| c.position).collect::<Vec<_>>();
+    let aligned = a
+        .align
+        .then(|| best_placement(&positions(&map), &positions(&truth_map), MATCH_RADIUS));
+    let by_associations = (aligned.is_none() && truth_traj.is_none())
         .then(|| placement_by_associations(&truth_map, &map, &truth_assoc, &assoc))
         .flatten();
-    if let Some(placement) = &placement {
+    if let Some(placement) = aligned.as_ref().or(by_associations.as_ref()) {
         place(placement, &mut map, &mut traj);
     } else if truth_traj.is_none() {
         eprintln!(
@@ -102,7 +114,8 @@ pub fn run_eval(a: EvalArgs) -> Result<(), super::CliError> {
         &truth_assoc,
         &assoc,
     );
-    report.placed_by_associations = placement.is_some();
+    report.placed_by_associations = by_associations.is_some();
+    report.placed_by_alignment = aligned.is_some();
     if let Some(path) = &a.assoc_real_time {
         let truth = files::associations_from_csv(&read_text(&a.truth.join(TRUTH_ASSOC))?)
             .map_err(bad_input(TRUTH_ASSOC))?;
@@ -228,6 +241,12 @@ pub fn table(r: &Report) -> String {
         rows.push((
             "map placed by".into(),
             "the associations (no true trajectory)".into(),
+        ));
+    }
+    if r.placed_by_alignment {
+        rows.push((
+            "map placed by".into(),
+            "its best rigid alignment (--align)".into(),
         ));
     }
     rows.extend([
