@@ -4,12 +4,14 @@
 
 use crate::matching::one_to_one;
 use cairn_core::SE2;
+use cairn_slam::frontend::grid::Grid;
 use cairn_slam::points::arun;
 use nalgebra::Vector2;
 
 /// Above this many candidate placements (estimated pairs × true pairs) only
 /// the estimate's own frame is refined: an FS track's 300 cones would give
-/// billions, and there the start line fixes the frame anyway.
+/// billions, and there the start line fixes the frame anyway. MRCLAM's
+/// 15 tubes against a map of up to 60 landmarks give under 200,000.
 const MAX_HYPOTHESES: usize = 2_000_000;
 
 /// Placements refined after the quick count.
@@ -31,7 +33,9 @@ pub fn best_placement(estimate: &[Vector2<f64>], truth: &[Vector2<f64>], radius:
     if estimate.is_empty() || truth.is_empty() || !(radius > 0.0 && radius.is_finite()) {
         return identity;
     }
-    let mut seeds = vec![(quick_score(&identity, estimate, truth, radius), identity)];
+    let grid = Grid::new(truth.to_vec(), radius);
+    let quick_score = |placed: &SE2| quick_score(placed, estimate, &grid, radius);
+    let mut seeds = vec![(quick_score(&identity), identity)];
     let pairs = |n: usize| n * n.saturating_sub(1) / 2;
     if pairs(estimate.len()).saturating_mul(pairs(truth.len())) <= MAX_HYPOTHESES {
         for (i, a) in estimate.iter().enumerate() {
@@ -47,7 +51,7 @@ pub fn best_placement(estimate: &[Vector2<f64>], truth: &[Vector2<f64>], radius:
                         }
                         for (p, q) in [(c, d), (d, c)] {
                             let placed = segment_placement(a, b, p, q);
-                            seeds.push((quick_score(&placed, estimate, truth, radius), placed));
+                            seeds.push((quick_score(&placed), placed));
                         }
                     }
                 }
@@ -78,19 +82,15 @@ fn segment_placement(
     SE2::new(t.x, t.y, theta)
 }
 
-/// Points with a true point within `radius` once placed, and their summed
-/// nearest distance: an upper bound on the one-to-one count, cheap to get.
-fn quick_score(
-    placed: &SE2,
-    estimate: &[Vector2<f64>],
-    truth: &[Vector2<f64>],
-    radius: f64,
-) -> (usize, f64) {
+/// Points with a true point (of `truth`) within `radius` once placed, and
+/// their summed nearest distance: an upper bound on the one-to-one count,
+/// cheap to get.
+fn quick_score(placed: &SE2, estimate: &[Vector2<f64>], truth: &Grid, radius: f64) -> (usize, f64) {
     estimate.iter().fold((0, 0.0), |(n, sum), e| {
         let p = placed.transform_point(e);
         let nearest = truth
-            .iter()
-            .map(|t| (t - p).norm())
+            .near(&p, radius)
+            .map(|j| (truth.point(j) - p).norm())
             .fold(f64::INFINITY, f64::min);
         if nearest <= radius {
             (n + 1, sum + nearest)
@@ -204,6 +204,26 @@ mod tests {
         for (e, t) in estimate.iter().zip(&truth) {
             assert!((placed.transform_point(e) - t).norm() < 1e-9, "{placed:?}");
         }
+    }
+
+    #[test]
+    fn sixty_four_landmarks_against_eight_are_placed() {
+        // Eight copies of the layout 30 m apart, turned and shifted: a
+        // copy's landmarks match the truth at once, the others nowhere.
+        let truth = layout();
+        let moved = SE2::new(-4.0, 7.0, -1.0);
+        let estimate: Vec<_> = (0..8)
+            .flat_map(|k| {
+                let shift = v(30.0 * k as f64, 0.0);
+                truth
+                    .iter()
+                    .map(move |t| moved.transform_point(&(t + shift)))
+            })
+            .collect();
+        let placed = best_placement(&estimate, &truth, 1.0);
+        let on_truth: Vec<_> = estimate.iter().map(|e| placed.transform_point(e)).collect();
+        let matched = one_to_one(&on_truth, &truth, 1.0);
+        assert_eq!(matched.iter().flatten().count(), truth.len());
     }
 
     #[test]
