@@ -88,8 +88,9 @@ pub fn run_eval(a: EvalArgs) -> Result<(), super::CliError> {
     let mut map = map_from_csv(&read_text(&a.map)?).map_err(bad_input(a.map.display()))?;
     let mut traj =
         files::trajectory_from_tum(&read_text(&a.traj)?).map_err(bad_input(a.traj.display()))?;
-    // Without a true trajectory the log had no start pose either: the
-    // estimate is in its own frame, and the associations place it.
+    // With --align the map's shape places it. Otherwise, without a true
+    // trajectory the log had no start pose either: the estimate is in its
+    // own frame, and the associations place it.
     let positions = |cones: &[Cone]| cones.iter().map(|c| c.position).collect::<Vec<_>>();
     let aligned = a
         .align
