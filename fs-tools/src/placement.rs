@@ -24,10 +24,11 @@ const ROUNDS: usize = 20;
 /// one-to-one within `radius` ([`one_to_one`]), then the smallest summed
 /// distance. Candidates are the estimate's own frame and every placement
 /// that lays a pair of estimated points at least `radius` apart onto a true
-/// pair as far apart; the best [`REFINED`] by a quick count are refined by
+/// pair as far apart; the best 20 by a quick count are refined by
 /// re-matching and re-aligning (least squares on the matched pairs) until
-/// the matches stop changing. Small maps only ([`MAX_HYPOTHESES`]); larger
-/// ones are refined from their own frame.
+/// the matches stop changing. Only where the pairs of the two maps give at
+/// most 2·10⁶ candidates (a few dozen points each); a larger map is refined
+/// from its own frame alone.
 pub fn best_placement(estimate: &[Vector2<f64>], truth: &[Vector2<f64>], radius: f64) -> SE2 {
     let identity = SE2::new(0.0, 0.0, 0.0);
     if estimate.is_empty() || truth.is_empty() || !(radius > 0.0 && radius.is_finite()) {
