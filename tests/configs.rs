@@ -141,6 +141,14 @@ fn bad_files_name_the_key() {
             "hindsight_rounds must be from 1 to 20",
         ),
         (
+            "hindsight_anneal = 0.5",
+            "hindsight_anneal must be from 1 to 100",
+        ),
+        (
+            "hindsight_anneal = 101.0",
+            "hindsight_anneal must be from 1 to 100",
+        ),
+        (
             "yaw_rate_bias_sigma = 0.0",
             "yaw_rate_bias_sigma must be finite and positive",
         ),

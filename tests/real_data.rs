@@ -302,10 +302,11 @@ fn a_config_file_is_checked_and_its_values_overridden() {
 /// detection through a wide gate (robots 1 and 2 ended 3.5 and 5.3 m off
 /// before; robot 4 failed with the turn noise and lag of configs/mrclam.toml
 /// until its yaw-rate bias had a tight prior). The bounds are regression
-/// guards a little past today's results (ATE 0.11–0.88 m; after the map's
-/// best rigid placement, as the issue counts them, 13–15 of 15 true
-/// landmarks mapped one-to-one, no phantom, 0.087–0.153 m aligned map RMSE,
-/// 70–91% of detections right; docs/real-data.md), short of the issue's
+/// guards a little past today's results (ATE 0.12–1.19 m in the map's own
+/// frame, robot 4's turned as a whole in its first blind spin; after the
+/// map's best rigid placement, as the issue counts them, 13–15 of 15 true
+/// landmarks mapped one-to-one, no phantom, 0.067–0.118 m aligned map RMSE,
+/// 79–94% of detections right; docs/real-data.md), short of the issue's
 /// association target.
 #[test]
 fn the_graph_front_end_finds_itself_again_on_every_robot() {
@@ -325,7 +326,7 @@ fn the_graph_front_end_finds_itself_again_on_every_robot() {
         let report = evaluate(&dir, &map, &traj, &assoc);
         let number = |key: &str| report[key].as_f64().unwrap_or(f64::NAN);
         eprintln!("robot {robot}: {report}");
-        assert!(number("ate") < 1.2, "robot {robot}: {report}");
+        assert!(number("ate") < 1.5, "robot {robot}: {report}");
         let report = evaluate_with(&dir, &map, &traj, &assoc, &["--align"]);
         let number = |key: &str| report[key].as_f64().unwrap_or(f64::NAN);
         eprintln!("robot {robot}, placed: {report}");
@@ -333,7 +334,7 @@ fn the_graph_front_end_finds_itself_again_on_every_robot() {
         assert!(number("phantom") <= 1.0, "robot {robot}: {report}");
         assert!(number("map_rmse_aligned") < 0.2, "robot {robot}: {report}");
         assert!(
-            number("association_accuracy") > 0.6,
+            number("association_accuracy") > 0.7,
             "robot {robot}: {report}"
         );
     }
@@ -417,38 +418,80 @@ fn a_robot_spinning_on_commanded_turns_maps_each_landmark_once() {
     let _ = std::fs::remove_dir_all(&dir);
 }
 
+/// `configs/mrclam.toml` with `replacements` (each a line of it and its
+/// replacement) applied, written into `dir` as `name`.
+fn config_with(dir: &Path, name: &str, replacements: &[(&str, &str)]) -> PathBuf {
+    let mut text = std::fs::read_to_string(shipped_config()).expect("the shipped config reads");
+    for (line, replacement) in replacements {
+        assert!(text.contains(line), "{line} is not in the shipped config");
+        text = text.replace(line, replacement);
+    }
+    let path = dir.join(name);
+    std::fs::write(&path, text).expect("writes");
+    path
+}
+
+/// Association accuracy and phantoms of a graph run on the robot imported
+/// into `dir`, with `config` and the association `method`.
+fn accuracy(dir: &Path, config: &Path, method: &str) -> (f64, f64) {
+    let (o, [map, traj, assoc]) = slam_with(dir, config, &["--association", method]);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let report = evaluate(dir, &map, &traj, &assoc);
+    let number = |key: &str| report[key].as_f64().unwrap_or(f64::NAN);
+    (number("association_accuracy"), number("phantom"))
+}
+
+const ANNEALED: &str = "hindsight_anneal = 8.0";
+const NOT_ANNEALED: &str = "hindsight_anneal = 1.0";
+
 /// Dataset 6's tubes stand 0.15–0.25 m apart, closer than the camera's
 /// range noise: which detection is which tube, and where the tubes stand,
-/// settle together over several rounds of matching in hindsight
-/// (`hindsight_rounds`, 5 in configs/mrclam.toml). Robot 3 with SCNN:
-/// today 94.9% of detections right after the rounds, 82.9% after one.
-/// The bounds are regression guards.
+/// settle together over rounds of matching in hindsight, annealed from a
+/// wide σ and then at the detector's (configs/mrclam.toml). Robot 3 with
+/// SCNN: today 96.5% of detections right after them, 82.9% after one
+/// round at the detector's σ. The bounds are regression guards; 95% is
+/// the real-data issue's target.
 #[test]
 fn tubes_closer_than_the_noise_settle_over_rounds_of_matching() {
     let Some(dataset) = dataset6() else { return };
     let dir = scratch("rounds");
     import(&dataset, "3", &dir);
-    let shipped = shipped_config();
-    let text = std::fs::read_to_string(&shipped).expect("the shipped config reads");
-    assert!(text.contains("hindsight_rounds = 5"));
-    let once = dir.join("once.toml");
-    std::fs::write(
-        &once,
-        text.replace("hindsight_rounds = 5", "hindsight_rounds = 1"),
-    )
-    .expect("writes");
-    let accuracy = |config: &Path| {
-        let (o, [map, traj, assoc]) = slam_with(&dir, config, &["--association", "scnn"]);
-        assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
-        let report = evaluate(&dir, &map, &traj, &assoc);
-        assert_eq!(report["phantom"].as_f64(), Some(0.0), "{report}");
-        report["association_accuracy"].as_f64().unwrap_or(f64::NAN)
-    };
-    let (rounds, one) = (accuracy(&shipped), accuracy(&once));
-    assert!(rounds > 0.9, "{rounds}");
+    let once = config_with(
+        &dir,
+        "once.toml",
+        &[
+            ("hindsight_rounds = 5", "hindsight_rounds = 1"),
+            (ANNEALED, NOT_ANNEALED),
+        ],
+    );
+    let (rounds, phantoms) = accuracy(&dir, &shipped_config(), "scnn");
+    let (one, _) = accuracy(&dir, &once, "scnn");
+    assert_eq!(phantoms, 0.0);
+    assert!(rounds >= 0.95, "{rounds}");
     assert!(
         rounds > one + 0.05,
         "{rounds} after the rounds, {one} after one"
+    );
+    let _ = std::fs::remove_dir_all(&dir);
+}
+
+/// Robot 2 of Dataset 6 with maximum likelihood: matched at the detector's
+/// σ from the first round, the rounds settled with a landmark midway
+/// between two tubes of a group of three (72.2% of detections right);
+/// annealed from 8 times that σ, 81.2% today. The bound is a regression
+/// guard.
+#[test]
+fn annealing_the_matching_in_hindsight_tells_close_tubes_apart() {
+    let Some(dataset) = dataset6() else { return };
+    let dir = scratch("anneal");
+    import(&dataset, "2", &dir);
+    let plain = config_with(&dir, "plain.toml", &[(ANNEALED, NOT_ANNEALED)]);
+    let (annealed, phantoms) = accuracy(&dir, &shipped_config(), "ml");
+    let (not_annealed, _) = accuracy(&dir, &plain, "ml");
+    assert_eq!(phantoms, 0.0);
+    assert!(
+        annealed > not_annealed + 0.05,
+        "{annealed} annealed, {not_annealed} not"
     );
     let _ = std::fs::remove_dir_all(&dir);
 }

@@ -129,6 +129,17 @@ pub struct FrontEndConfig {
     /// matches and the map they give settle over several rounds; where
     /// they stand apart, one round leaves nothing to change.
     pub hindsight_rounds: u32,
+    /// The detector's σ, as a multiple of its own, that the matching in
+    /// hindsight begins at (1 to 100; 1, the default, begins at its own).
+    /// Above 1, the first rounds match and optimise with the σ this many
+    /// times larger, halving the variance each round until it is the
+    /// detector's, and only then the `hindsight_rounds` begin
+    /// (deterministic annealing): a wide σ lets the map of close landmarks
+    /// settle as a whole before each detection's nearest landmark decides.
+    /// Without it, rounds that matched at the detector's σ from the start
+    /// settled where the poses and a group's landmarks suited each other
+    /// (MRCLAM Dataset 6: a landmark midway between two tubes).
+    pub hindsight_anneal: f64,
     /// Sightings before a tentative landmark joins the map.
     pub confirm_after: u32,
     /// Landmarks that return after leaving the view, needed in one scan to
@@ -176,6 +187,7 @@ impl Default for FrontEndConfig {
             false_positives: 0.3,
             hindsight: true,
             hindsight_rounds: 1,
+            hindsight_anneal: 1.0,
             confirm_after: 3,
             loop_min_returned: 4,
             localise_after_loop: true,
@@ -199,11 +211,17 @@ enum Rule {
     Above(f64),
     /// A count from 1 to this.
     Count(u32),
+    /// From the first to the second, both included.
+    Between(f64, f64),
 }
 
 /// The most rounds of matching in hindsight a config may ask for: each is a
 /// final optimisation.
 const MAX_HINDSIGHT_ROUNDS: u32 = 20;
+
+/// The widest σ factor the matching in hindsight may begin at: 14 rounds
+/// of annealing.
+const MAX_HINDSIGHT_ANNEAL: f64 = 100.0;
 
 impl Rule {
     fn holds(self, v: f64) -> bool {
@@ -216,6 +234,7 @@ impl Rule {
                 Rule::Angle => v > 0.0 && v <= std::f64::consts::TAU,
                 Rule::Above(min) => v > min,
                 Rule::Count(max) => (1.0..=f64::from(max)).contains(&v),
+                Rule::Between(min, max) => (min..=max).contains(&v),
             }
     }
 
@@ -228,6 +247,7 @@ impl Rule {
             Rule::Angle => "in (0, 2π] (radians)".into(),
             Rule::Above(min) => format!("finite and above {min}"),
             Rule::Count(max) => format!("from 1 to {max}"),
+            Rule::Between(min, max) => format!("from {min} to {max}"),
         }
     }
 }
@@ -316,6 +336,11 @@ impl FrontEndConfig {
                 "hindsight_rounds",
                 f64::from(self.hindsight_rounds),
                 Count(MAX_HINDSIGHT_ROUNDS),
+            ),
+            (
+                "hindsight_anneal",
+                self.hindsight_anneal,
+                Between(1.0, MAX_HINDSIGHT_ANNEAL),
             ),
         ];
         if let MotionModel::Bicycle { wheelbase } = self.motion {
