@@ -138,7 +138,9 @@ pub struct FrontEndConfig {
     /// settle as a whole before each detection's nearest landmark decides.
     /// Without it, rounds that matched at the detector's σ from the start
     /// settled where the poses and a group's landmarks suited each other
-    /// (MRCLAM Dataset 6: a landmark midway between two tubes).
+    /// (MRCLAM Dataset 6: a landmark midway between two tubes). Where the
+    /// landmarks stand apart it costs a little: from 4 on six `hard` logs
+    /// of the simulator, 99.79 → 99.69% of detections right.
     pub hindsight_anneal: f64,
     /// Sightings before a tentative landmark joins the map.
     pub confirm_after: u32,
