@@ -247,8 +247,8 @@ impl GraphSlam {
 /// variance halves each round, down to the last factor above 1 (none for
 /// `start` ≤ 1). On MRCLAM Dataset 6, beginning at 8 (σ × 8, 5.7, 4, 2.8,
 /// 2, 1.4, then the rounds at σ) took maximum-likelihood association over
-/// the five robots from 79.9 to 85.6% (SCNN 84.9 → 87.3%, JCBB 84.4 →
-/// 86.6%), and robot 1 from 13 landmarks of 15 to 14.
+/// the five robots from 79.9 to 85.6% (SCNN 84.9 → 87.6%, JCBB 84.4 →
+/// 87.1%), and robot 1 from 13 landmarks of 15 to 14.
 fn anneal(start: f64) -> impl Iterator<Item = f64> {
     let rounds = if start > 1.0 {
         (2.0 * start.log2()).ceil() as i32
