@@ -5,7 +5,7 @@
 use crate::matching::one_to_one;
 use cairn_core::SE2;
 use cairn_slam::frontend::grid::Grid;
-use cairn_slam::points::arun;
+use cairn_slam::points::{rigid_motion, two_point};
 use nalgebra::Vector2;
 
 /// Above this many candidate placements (estimated pairs × true pairs) only
@@ -30,7 +30,7 @@ const ROUNDS: usize = 20;
 /// most 2·10⁶ candidates (a few dozen points each); a larger map is refined
 /// from its own frame alone.
 pub fn best_placement(estimate: &[Vector2<f64>], truth: &[Vector2<f64>], radius: f64) -> SE2 {
-    let identity = SE2::new(0.0, 0.0, 0.0);
+    let identity = SE2::identity();
     if estimate.is_empty() || truth.is_empty() || !(radius > 0.0 && radius.is_finite()) {
         return identity;
     }
@@ -51,36 +51,28 @@ pub fn best_placement(estimate: &[Vector2<f64>], truth: &[Vector2<f64>], radius:
                             continue;
                         }
                         for (p, q) in [(c, d), (d, c)] {
-                            let placed = segment_placement(a, b, p, q);
-                            seeds.push((quick_score(&placed), placed));
+                            if let Some(placed) = two_point(a, b, p, q) {
+                                seeds.push((quick_score(&placed), placed));
+                            }
                         }
                     }
                 }
             }
         }
     }
-    seeds.sort_by(|x, y| y.0.0.cmp(&x.0.0).then(x.0.1.total_cmp(&y.0.1)));
+    seeds.sort_by(|x, y| better(&x.0, &y.0));
     seeds.truncate(REFINED);
     seeds
         .into_iter()
         .map(|(_, seed)| refine(seed, estimate, truth, radius))
-        .min_by(|x, y| y.0.0.cmp(&x.0.0).then(x.0.1.total_cmp(&y.0.1)))
+        .min_by(|x, y| better(&x.0, &y.0))
         .map_or(identity, |(_, placed)| placed)
 }
 
-/// The placement that puts `a` on `p` and turns `a → b` onto `p → q`,
-/// centred on the segments' midpoints.
-fn segment_placement(
-    a: &Vector2<f64>,
-    b: &Vector2<f64>,
-    p: &Vector2<f64>,
-    q: &Vector2<f64>,
-) -> SE2 {
-    let (u, v) = (b - a, q - p);
-    let theta = v.y.atan2(v.x) - u.y.atan2(u.x);
-    let turned = SE2::new(0.0, 0.0, theta);
-    let t = 0.5 * (p + q) - turned.transform_point(&(0.5 * (a + b)));
-    SE2::new(t.x, t.y, theta)
+/// Orders (matched, summed distance) scores best first: more matched, then
+/// less distance.
+fn better(x: &(usize, f64), y: &(usize, f64)) -> std::cmp::Ordering {
+    y.0.cmp(&x.0).then(x.1.total_cmp(&y.1))
 }
 
 /// Points with a true point (of `truth`) within `radius` once placed, and
@@ -101,51 +93,42 @@ fn quick_score(placed: &SE2, estimate: &[Vector2<f64>], truth: &Grid, radius: f6
     })
 }
 
-/// Re-matches one-to-one and re-aligns on the matched pairs until the
-/// matches stop changing; returns the (pairs, summed distance) and placement.
+/// Re-aligns on the matched pairs (least squares) and re-matches one-to-one
+/// until the matches stop changing, keeping only placements that match as
+/// many; returns the (pairs, summed distance) and placement.
 fn refine(
     mut placed: SE2,
     estimate: &[Vector2<f64>],
     truth: &[Vector2<f64>],
     radius: f64,
 ) -> ((usize, f64), SE2) {
-    let mut last = Vec::new();
-    let mut score = (0, 0.0);
+    let place = |p: &SE2| -> Vec<_> { estimate.iter().map(|e| p.transform_point(e)).collect() };
+    let mut matched = one_to_one(&place(&placed), truth, radius);
     for _ in 0..ROUNDS {
-        let moved: Vec<_> = estimate.iter().map(|e| placed.transform_point(e)).collect();
-        let matched = one_to_one(&moved, truth, radius);
-        score = matched
-            .iter()
-            .zip(&moved)
-            .filter_map(|(m, p)| Some((truth[(*m)?] - p).norm()))
-            .fold((0, 0.0), |(n, s), d| (n + 1, s + d));
-        if matched == last {
-            break;
-        }
         let (a, b): (Vec<_>, Vec<_>) = matched
             .iter()
             .zip(estimate)
             .filter_map(|(m, e)| Some((*e, truth[(*m)?])))
             .unzip();
-        let Some((r, t)) = arun(&a, &b) else {
+        let Some(next) = rigid_motion(&a, &b) else {
             break;
         };
-        let next = SE2::new(t.x, t.y, r[(1, 0)].atan2(r[(0, 0)]));
-        // Only a placement matching at least as many is kept.
-        let kept = one_to_one(
-            &estimate
-                .iter()
-                .map(|e| next.transform_point(e))
-                .collect::<Vec<_>>(),
-            truth,
-            radius,
-        );
-        if kept.iter().flatten().count() < score.0 {
+        let next_matched = one_to_one(&place(&next), truth, radius);
+        let count = |m: &[Option<usize>]| m.iter().flatten().count();
+        if count(&next_matched) < count(&matched) {
             break;
         }
-        placed = next;
-        last = matched;
+        let settled = next_matched == matched;
+        (placed, matched) = (next, next_matched);
+        if settled {
+            break;
+        }
     }
+    let score = matched
+        .iter()
+        .zip(place(&placed))
+        .filter_map(|(m, p)| Some((truth[(*m)?] - p).norm()))
+        .fold((0, 0.0), |(n, s), d| (n + 1, s + d));
     (score, placed)
 }
 

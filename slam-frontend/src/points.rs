@@ -169,6 +169,29 @@ pub fn arun(a: &[Vector2<f64>], b: &[Vector2<f64>]) -> Option<(Matrix2<f64>, Vec
     ))
 }
 
+/// [`arun`]'s fit as a rigid motion: the `SE2` that maps `a` onto `b` best.
+pub fn rigid_motion(a: &[Vector2<f64>], b: &[Vector2<f64>]) -> Option<SE2> {
+    let (r, t) = arun(a, b)?;
+    Some(SE2::new(t.x, t.y, r[(1, 0)].atan2(r[(0, 0)])))
+}
+
+/// The rigid motion that takes `a` to `ma` and `b` to `mb` (exactly in
+/// direction, midpoints matched); `None` when either pair is one point.
+pub fn two_point(
+    a: &Vector2<f64>,
+    b: &Vector2<f64>,
+    ma: &Vector2<f64>,
+    mb: &Vector2<f64>,
+) -> Option<SE2> {
+    let (d, e) = (b - a, mb - ma);
+    if d.norm() < 1e-9 || e.norm() < 1e-9 {
+        return None;
+    }
+    let theta = e.y.atan2(e.x) - d.y.atan2(d.x);
+    let t = 0.5 * (ma + mb) - nalgebra::Rotation2::new(theta) * (0.5 * (a + b));
+    Some(SE2::new(t.x, t.y, theta))
+}
+
 /// [`arun`] for 3D points.
 pub fn arun3(a: &[Vector3<f64>], b: &[Vector3<f64>]) -> Option<(Matrix3<f64>, Vector3<f64>)> {
     let columns = |s: &[Vector3<f64>]| DMatrix::from_fn(3, s.len(), |i, j| s[j][i]);
@@ -238,8 +261,10 @@ impl SetTracker {
             if a.len() < 3 {
                 break;
             }
-            let Some((r, t)) = arun(&a, &b) else { break };
-            motion = SE2::new(t.x, t.y, r[(1, 0)].atan2(r[(0, 0)]));
+            let Some(fit) = rigid_motion(&a, &b) else {
+                break;
+            };
+            motion = fit;
         }
         let ids: Vec<u64> = pairs
             .iter()
@@ -388,6 +413,21 @@ mod tests {
     use super::*;
     use nalgebra::{Rotation3, Unit};
     use proptest::prelude::*;
+
+    #[test]
+    fn two_points_give_the_motion_that_maps_them() {
+        let truth = SE2::new(1.5, -2.0, 0.7);
+        let (a, b) = (Vector2::new(0.3, 1.0), Vector2::new(-2.0, 4.0));
+        let fit = two_point(
+            &a,
+            &b,
+            &truth.transform_point(&a),
+            &truth.transform_point(&b),
+        )
+        .expect("distinct points");
+        assert!((fit.t - truth.t).norm() < 1e-12 && (fit.theta - truth.theta).abs() < 1e-12);
+        assert!(two_point(&a, &a, &a, &b).is_none());
+    }
 
     proptest! {
         #[test]

@@ -404,6 +404,23 @@ impl FrontEndConfig {
         }
     }
 
+    /// The detector's σ as assumed: `range_sigma` (m),
+    /// `range_sigma_relative` and `bearing_sigma` (rad).
+    pub fn detector_sigma(&self) -> [f64; 3] {
+        [
+            self.range_sigma,
+            self.range_sigma_relative,
+            self.bearing_sigma,
+        ]
+    }
+
+    /// Sets the σ [`FrontEndConfig::detector_sigma`] returns.
+    pub fn set_detector_sigma(&mut self, [range, relative, bearing]: [f64; 3]) {
+        self.range_sigma = range;
+        self.range_sigma_relative = relative;
+        self.bearing_sigma = bearing;
+    }
+
     /// Measurement covariance of a detection in the vehicle frame: the
     /// log's, or the assumed range and bearing noise.
     pub fn detection_cov(&self, d: &Detection) -> Matrix2<f64> {

@@ -122,25 +122,13 @@ impl GraphSlam {
         scans: &[PendingScan],
         gate: f64,
     ) -> Result<(), OptimiseError> {
-        let sigma = [
-            self.config.range_sigma,
-            self.config.range_sigma_relative,
-            self.config.bearing_sigma,
-        ];
+        let sigma = self.config.detector_sigma();
         let widened = anneal(self.config.hindsight_anneal).try_for_each(|k| {
-            [
-                self.config.range_sigma,
-                self.config.range_sigma_relative,
-                self.config.bearing_sigma,
-            ] = sigma.map(|s| s * k);
+            self.config.set_detector_sigma(sigma.map(|s| s * k));
             self.associate_in_hindsight(scans, gate);
             self.optimise(Batch::last(true))
         });
-        [
-            self.config.range_sigma,
-            self.config.range_sigma_relative,
-            self.config.bearing_sigma,
-        ] = sigma;
+        self.config.set_detector_sigma(sigma);
         widened?;
         self.associate_in_hindsight(scans, gate);
         self.optimise(Batch::last(true))?;

@@ -158,11 +158,7 @@ impl GraphSlam {
         let mut calibration = Calibration::default();
         calibration.yaw_rate_bias_walk = config.yaw_rate_bias_walk;
         calibration.scan_latency = config.scan_latency;
-        let assumed_noise = [
-            config.range_sigma,
-            config.range_sigma_relative,
-            config.bearing_sigma,
-        ];
+        let assumed_noise = config.detector_sigma();
         Self {
             motion: Odometry::new(config.motion, config.motion_noise())
                 .with_scan_latency(config.scan_latency),

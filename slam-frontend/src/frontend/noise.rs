@@ -169,9 +169,8 @@ impl GraphSlam {
 
     /// Multiplies every part of the detector's σ by `k`.
     fn scale_detector_sigma(&mut self, k: f64) {
-        self.config.range_sigma *= k;
-        self.config.range_sigma_relative *= k;
-        self.config.bearing_sigma *= k;
+        let sigma = self.config.detector_sigma();
+        self.config.set_detector_sigma(sigma.map(|s| s * k));
     }
 
     /// The detector's noise as configured and as learned so far; `None`
@@ -179,11 +178,7 @@ impl GraphSlam {
     pub fn detector_noise(&self) -> Option<DetectorNoise> {
         self.config.learn_detector_noise.then(|| DetectorNoise {
             assumed: self.assumed_noise,
-            estimated: [
-                self.config.range_sigma,
-                self.config.range_sigma_relative,
-                self.config.bearing_sigma,
-            ],
+            estimated: self.config.detector_sigma(),
             variance_scale: self.noise.scale(),
         })
     }

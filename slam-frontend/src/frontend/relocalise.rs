@@ -11,8 +11,9 @@ use super::GraphSlam;
 use super::grid::Grid;
 use super::loop_closure::PendingScan;
 use crate::log::Detection;
+use crate::points::two_point;
 use cairn_core::SE2;
-use nalgebra::{Matrix3, Rotation2, Vector2, Vector3};
+use nalgebra::{Matrix3, Vector2, Vector3};
 
 /// Detections within this distance of a map landmark after a candidate
 /// correction agree with it (m).
@@ -248,24 +249,6 @@ impl GraphSlam {
     }
 }
 
-/// The rigid motion that takes `a` to `ma` and `b` to `mb` (exactly in
-/// direction, midpoints matched).
-pub(super) fn two_point(
-    a: &Vector2<f64>,
-    b: &Vector2<f64>,
-    ma: &Vector2<f64>,
-    mb: &Vector2<f64>,
-) -> Option<SE2> {
-    let (d, e) = (b - a, mb - ma);
-    if d.norm() < 1e-9 || e.norm() < 1e-9 {
-        return None;
-    }
-    let theta = e.y.atan2(e.x) - d.y.atan2(d.x);
-    let rotation = Rotation2::new(theta);
-    let t = 0.5 * (ma + mb) - rotation * (0.5 * (a + b));
-    Some(SE2::new(t.x, t.y, theta))
-}
-
 /// Whether the detections that `correction` puts on map landmarks fall on
 /// two places at least [`BASELINE`] apart, at least two on each: one group
 /// of landmarks fits a scan turned about it, so it does not fix the heading.
@@ -293,21 +276,6 @@ fn same(a: &SE2, b: &SE2, at: &Vector2<f64>) -> bool {
 #[cfg(test)]
 mod tests {
     use super::*;
-
-    #[test]
-    fn two_points_give_the_motion_that_maps_them() {
-        let truth = SE2::new(1.5, -2.0, 0.7);
-        let (a, b) = (Vector2::new(0.3, 1.0), Vector2::new(-2.0, 4.0));
-        let fit = two_point(
-            &a,
-            &b,
-            &truth.transform_point(&a),
-            &truth.transform_point(&b),
-        )
-        .expect("distinct points");
-        assert!((fit.t - truth.t).norm() < 1e-12 && (fit.theta - truth.theta).abs() < 1e-12);
-        assert!(two_point(&a, &a, &a, &b).is_none());
-    }
 
     #[test]
     fn a_fit_must_put_detections_on_two_places() {

@@ -10,7 +10,8 @@
 //! geometry recognises the revisit.
 
 use super::GraphSlam;
-use super::relocalise::{AGREE, BASELINE, MARGIN, two_point};
+use super::relocalise::{AGREE, BASELINE, MARGIN};
+use crate::points::{rigid_motion, two_point};
 use cairn_core::SE2;
 use nalgebra::Vector2;
 
@@ -188,8 +189,7 @@ fn fit_shape(old: &[Vector2<f64>], new: &[Vector2<f64>]) -> Option<SE2> {
     if spread < 2.0 * BASELINE {
         return None;
     }
-    let (r, t) = crate::points::arun(&from, &to)?;
-    Some(SE2::new(t.x, t.y, r[(1, 0)].atan2(r[(0, 0)])))
+    rigid_motion(&from, &to)
 }
 
 #[cfg(test)]
