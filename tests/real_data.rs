@@ -179,17 +179,22 @@ fn every_estimator_maps_an_imported_mrclam_robot() {
         eprintln!("{estimator}: {report}");
         // Every detection scored, some landmarks on true ones, a bounded
         // trajectory (integrating the commanded velocities: 2.05 m).
-        // Regression guards near today's results: graph 9 of 15, ATE
-        // 0.88 m, 88% right; the filters 2-4 of 15, ATE 2.1-3.9 m, 26-30%.
-        // On this robot the filters lost a little with the turn noise of
-        // configs/mrclam.toml (FastSLAM 1.0 was at 1.97 m and 38%), while
-        // over all robots they gained (docs/real-data.md, Spins).
+        // Regression guards near today's results, in the map's own frame:
+        // the graph 4 of 15 (robot 4's blind spin turns its whole map),
+        // ATE 1.19 m, 92% right; the filters 7-11 of 15 and 37-44% right,
+        // EKF ATE 0.98 m. FastSLAM's ATE here is chaotic: FastSLAM 1.0 gives
+        // 2.2-7.8 m over seeds 0-3.
         assert_eq!(number("detections"), 2026.0, "{estimator}");
         let on_landmarks = number("landmarks") - number("phantom");
-        assert!(on_landmarks >= 2.0, "{estimator}: {report}");
-        assert!(number("ate") < 4.5, "{estimator}: {report}");
+        assert!(on_landmarks >= 3.0, "{estimator}: {report}");
+        let ate_bound = if estimator.starts_with("fastslam") {
+            9.0
+        } else {
+            1.5
+        };
+        assert!(number("ate") < ate_bound, "{estimator}: {report}");
         assert!(
-            number("association_accuracy") > 0.24,
+            number("association_accuracy") > 0.33,
             "{estimator}: {report}"
         );
     }

@@ -3,7 +3,7 @@
 
 use cairn_core::SE2;
 use cairn_fs_tools::eval::{Report, evaluate};
-use cairn_fs_tools::run::run_estimator;
+use cairn_fs_tools::run::{run_estimator, score as score_sim};
 use cairn_fs_tools::sim::{SimConfig, simulate};
 use cairn_fs_tools::trackgen::{TrackRules, random_track};
 use cairn_slam::Cone;
@@ -311,6 +311,37 @@ fn the_graph_maps_two_cones_closer_than_the_merge_radius() {
 }
 
 #[test]
+fn every_estimator_maps_a_cone_that_appears_beside_a_mapped_one() {
+    // The second cone stands 0.4 m behind the first along the drive, so it
+    // comes into the 15 m range two scans later, beside a landmark that
+    // already explains a detection of every scan. The estimators are told
+    // the detector's noise: 0.4 m is then many σ.
+    let cones = vec![
+        cone(17.0, 2.0, Color::Yellow),
+        cone(17.4, 2.0, Color::Yellow),
+        cone(12.0, -2.0, Color::Blue),
+    ];
+    let (range_sigma, bearing_sigma) = (0.02, 0.2f64.to_radians());
+    let run = drive(&cones, 2.0, 0.0, 4.0, range_sigma, bearing_sigma);
+    let config = FrontEndConfig {
+        range_sigma,
+        range_sigma_relative: 0.0,
+        bearing_sigma,
+        ..FrontEndConfig::default()
+    };
+    for kind in filters() {
+        let mut slam = EstimatorBuilder::new(kind, config.clone()).build();
+        for r in &run.log {
+            slam.process(r);
+        }
+        let report = score(&cones, slam.as_ref(), &run);
+        assert_eq!(report.missed, 0, "{kind:?}: {:?}", slam.map());
+        assert_eq!(report.phantom, 0, "{kind:?}: {:?}", slam.map());
+        assert!(report.association_accuracy > 0.95, "{kind:?}: {report:?}");
+    }
+}
+
+#[test]
 fn known_correspondences_are_followed_exactly() {
     let cones = corridor(60.0);
     let run = drive(&cones, 5.0, 0.0, 10.0, 0.05, 0.5f64.to_radians());
@@ -377,6 +408,34 @@ fn every_estimator_closes_the_loop_of_a_random_track_and_localises() {
                 .count()
         );
     }
+}
+
+#[test]
+fn ekf_slam_refines_its_own_map_after_the_loop_closes() {
+    // Localising on the map it built, EKF-SLAM still updates the landmarks
+    // jointly with the pose: the second lap's sightings correct what the
+    // first lap's drift left after the loop closed.
+    let (track, course) = random_track(1, &TrackRules::default());
+    let sim = simulate(&track, &course, &SimConfig::default());
+    let mut slam = EstimatorBuilder::new(EstimatorKind::Ekf, FrontEndConfig::default()).build();
+    let mut at_closure = None;
+    for record in &sim.log {
+        slam.process(record);
+        if at_closure.is_none() && slam.loop_closures() == 1 {
+            at_closure = Some(score_sim(&sim, slam.as_ref()));
+        }
+    }
+    let at_closure = at_closure.expect("the loop closes");
+    let end = score_sim(&sim, slam.as_ref());
+    println!("at closure {at_closure:?}\nat the end {end:?}");
+    assert_eq!(slam.mode(), Mode::Localising);
+    assert_eq!(end.landmarks, at_closure.landmarks, "no landmark is added");
+    assert!(
+        end.map_rmse < 0.8 * at_closure.map_rmse,
+        "{} → {}",
+        at_closure.map_rmse,
+        end.map_rmse
+    );
 }
 
 #[test]

@@ -1,9 +1,11 @@
 //! EKF-SLAM: one Gaussian over the pose, the gyro's bias and every
 //! landmark, with the full covariance (Thrun et al., Probabilistic Robotics,
 //! 10.2). Each prediction costs O(n) and each range-bearing update O(n²) in
-//! the state size n.
+//! the state size n. Once its loop closes it starts no new landmarks but
+//! keeps updating those it has jointly with the pose, so later laps refine
+//! the map; a map given with [`EkfSlam::with_map`] stays fixed.
 
-use super::{Choice, Run, candidates, clear_of, landmark_from, measurement, predict};
+use super::{Choice, Run, beside, candidates, landmark_from, measurement, predict};
 use crate::files::{Association, StampedPose};
 use crate::frontend::association::{Correlation, Pair};
 use crate::frontend::{FrontEndConfig, Mode, Timing};
@@ -201,10 +203,10 @@ impl EkfSlam {
             let (z, r) = &measurements[i];
             let landmark = match choices[i] {
                 Choice::Landmark(l) => {
-                    let ok = match (self.run.mode, self.landmarks[l].slot) {
-                        (Mode::Mapping, Some(slot)) => self.update_joint(slot, z, r),
-                        (Mode::Localising, Some(slot)) => self.update_pose(slot, z, r),
-                        (_, None) => false,
+                    let ok = match self.landmarks[l].slot {
+                        Some(slot) if self.run.map_given => self.update_pose(slot, z, r),
+                        Some(slot) => self.update_joint(slot, z, r),
+                        None => false,
                     };
                     ok.then_some(l)
                 }
@@ -234,9 +236,6 @@ impl EkfSlam {
             self.run.close_loop();
             for lm in &mut self.landmarks {
                 lm.sighting.settle();
-            }
-            if self.run.mode == Mode::Localising {
-                self.freeze_map();
             }
         }
         self.poses.push(StampedPose { t, pose });
@@ -313,11 +312,11 @@ impl EkfSlam {
         let tracked = self
             .run
             .tracked(cones, |l| self.landmarks[l].slot.is_some());
-        let means: Vec<Vector2<f64>> = self
+        let means: Vec<(usize, Vector2<f64>)> = self
             .owners
             .iter()
             .enumerate()
-            .map(|(k, _)| self.x.fixed_rows::<2>(ROBOT + 2 * k).into_owned())
+            .map(|(k, &l)| (l, self.x.fixed_rows::<2>(ROBOT + 2 * k).into_owned()))
             .collect();
         // Pairs of different detections are correlated through the pose
         // and through the landmarks' joint covariance: H_a P H_bᵀ.
@@ -341,7 +340,10 @@ impl EkfSlam {
             &nearest,
             &tracked,
             Correlation::General(&correlation),
-            |i| clear_of(&pose.transform_point(&cones[i].position), means.iter()),
+            |i, taken| {
+                let point = pose.transform_point(&cones[i].position);
+                beside(&point, means.iter().map(|(l, m)| (*l, m)), taken)
+            },
         )
     }
 
@@ -506,14 +508,6 @@ impl EkfSlam {
         for l in dropped {
             self.remove(l);
         }
-    }
-
-    /// Localisation from here on: the map is fixed, so the pose forgets its
-    /// correlation with it.
-    fn freeze_map(&mut self) {
-        let n = self.dim;
-        self.p.view_mut((0, ROBOT), (ROBOT, n - ROBOT)).fill(0.0);
-        self.p.view_mut((ROBOT, 0), (n - ROBOT, ROBOT)).fill(0.0);
     }
 
     /// Keeps P symmetric against round-off from the one-sided downdates.

@@ -4,7 +4,7 @@
 //! scan's matched observations into the proposal it samples from.
 
 use super::particle::{Landmark, Particle, Step, proposal, push_step, refine};
-use super::{Choice, Run, candidates, clear_of, landmark_from, measurement};
+use super::{Choice, Run, beside, candidates, landmark_from, measurement};
 use crate::color::Color;
 use crate::files::{Association, StampedPose};
 use crate::frontend::align;
@@ -347,6 +347,7 @@ impl FastSlam {
         let config = &self.run.config;
         let settings = self.settings;
         let localising = self.run.mode == Mode::Localising;
+        let map_given = self.run.map_given;
         let particle = &self.particles[k];
         // The motion's covariance in the world frame at this particle.
         let (_, j_delta) = compose_jacobians(&particle.pose, delta);
@@ -382,15 +383,14 @@ impl FastSlam {
             &nearest,
             &tracked,
             Correlation::ThroughPose(&at_cov),
-            |i| {
+            |i, taken| {
                 let w = at.transform_point(&cones[i].position);
-                clear_of(
+                let live = particle.map.iter().enumerate();
+                beside(
                     &w,
-                    particle
-                        .map
-                        .iter()
-                        .filter(|lm| !lm.removed)
-                        .map(|lm| &lm.mean),
+                    live.filter(|(_, lm)| !lm.removed)
+                        .map(|(l, lm)| (l, &lm.mean)),
+                    taken,
                 )
             },
         );
@@ -431,8 +431,12 @@ impl FastSlam {
                 Choice::Landmark(l) if l < particle.map.len() => {
                     let lm = Rc::make_mut(&mut particle.map[l]);
 
-                    if !localising {
+                    // After its own loop closes the particle still refines
+                    // the map it built; a given map stays fixed.
+                    if !map_given {
                         refine(lm, &pose, z, r);
+                    }
+                    if !localising {
                         lm.sighting.count(d.color, config.confirm_after);
                     }
                     Some(l)

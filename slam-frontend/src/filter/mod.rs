@@ -109,8 +109,25 @@ pub enum Choice {
 }
 
 /// A distance below which an unmatched detection is taken for a poorly
-/// matched old landmark rather than a new cone (m).
+/// matched old landmark rather than a new cone (m), unless that landmark
+/// explains another detection of the same scan.
 const NEW_LANDMARK_CLEARANCE: f64 = 0.8;
+
+/// What stands within [`NEW_LANDMARK_CLEARANCE`] of an unmatched detection.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+enum Beside {
+    /// No landmark: the detection starts one beyond `new_landmark_gate`.
+    Nothing,
+    /// Only landmarks that explain another detection of the scan. One
+    /// landmark explains one detection per scan, so beyond the individual
+    /// `gate` this is a second cone beside them, as in the graph front end
+    /// (cones 0.3–0.45 m apart had been left unmapped). Within the gate it
+    /// may be the cone whose landmark another detection took.
+    TakenOnly,
+    /// A landmark no detection of the scan explains: most likely this
+    /// detection's, poorly matched.
+    Free,
+}
 
 /// State every filter keeps about the run besides its estimate: settings,
 /// mode, odometry, timings, the tracker, and known correspondences.
@@ -132,6 +149,9 @@ struct Run {
     known_landmark: HashMap<usize, usize>,
     /// A given map, until the car has been placed on it.
     unplaced: Option<Vec<(Vector2<f64>, Color)>>,
+    /// Localising on a map given from outside, which stays fixed. A map the
+    /// filter built itself is refined by every later sighting.
+    map_given: bool,
     placement: align::Placement,
     /// The pose of the first scan, where a lap ends.
     first_pose: Option<SE2>,
@@ -155,6 +175,7 @@ impl Run {
             known: None,
             known_landmark: HashMap::new(),
             unplaced: None,
+            map_given: false,
             placement: align::Placement::default(),
             first_pose: None,
         }
@@ -163,6 +184,7 @@ impl Run {
     /// Localises on `map` from the first scan, once placed on it.
     fn start_on(&mut self, map: &[Cone]) {
         self.mode = Mode::Localising;
+        self.map_given = true;
         self.unplaced = Some(map.iter().map(|c| (c.position, c.color)).collect());
     }
 
@@ -241,8 +263,9 @@ impl Run {
     }
 
     /// Chooses for every detection of `scan`. `nearest[i]` is the χ² of the
-    /// nearest landmark even beyond the gate; `clear(i)` says whether no
-    /// landmark lies within [`NEW_LANDMARK_CLEARANCE`] of the detection.
+    /// nearest landmark even beyond the gate; `beside(i, taken)` says what
+    /// lies within [`NEW_LANDMARK_CLEARANCE`] of detection `i`, `taken[l]`
+    /// being whether landmark `l` explains a detection of the scan.
     fn choose(
         &self,
         scan: usize,
@@ -250,7 +273,7 @@ impl Run {
         nearest: &[f64],
         tracked: &[Option<usize>],
         correlation: Correlation,
-        clear: impl Fn(usize) -> bool,
+        beside: impl Fn(usize, &[bool]) -> Beside,
     ) -> Vec<Choice> {
         if let Some(known) = &self.known {
             return (0..candidates.len())
@@ -271,16 +294,22 @@ impl Run {
             |pairs| chi2_99(2 * pairs),
             correlation,
         );
+        let mut taken = vec![false; assigned.iter().flatten().max().map_or(0, |&l| l + 1)];
+        for &l in assigned.iter().flatten() {
+            taken[l] = true;
+        }
         assigned
             .iter()
             .enumerate()
             .map(|(i, a)| match a {
                 Some(l) => Choice::Landmark(*l),
-                None if self.mode == Mode::Mapping
-                    && nearest[i] > self.config.new_landmark_gate
-                    && clear(i) =>
-                {
-                    Choice::New
+                None if self.mode == Mode::Mapping => {
+                    let clear = match beside(i, &taken) {
+                        Beside::Nothing => nearest[i] > self.config.new_landmark_gate,
+                        Beside::TakenOnly => nearest[i] > self.config.gate,
+                        Beside::Free => false,
+                    };
+                    if clear { Choice::New } else { Choice::Reject }
                 }
                 None => Choice::Reject,
             })
@@ -392,10 +421,24 @@ fn candidates<'a>(
         .unzip()
 }
 
-/// Whether no landmark (given by its mean) lies within
-/// [`NEW_LANDMARK_CLEARANCE`] of `point`.
-fn clear_of<'a>(point: &Vector2<f64>, mut means: impl Iterator<Item = &'a Vector2<f64>>) -> bool {
-    means.all(|m| (m - point).norm() > NEW_LANDMARK_CLEARANCE)
+/// What lies within [`NEW_LANDMARK_CLEARANCE`] of `point` among the
+/// landmarks (index and mean); `taken[l]` says landmark `l` explains a
+/// detection of the scan.
+fn beside<'a>(
+    point: &Vector2<f64>,
+    landmarks: impl Iterator<Item = (usize, &'a Vector2<f64>)>,
+    taken: &[bool],
+) -> Beside {
+    let mut found = Beside::Nothing;
+    for (l, m) in landmarks {
+        if (m - point).norm() <= NEW_LANDMARK_CLEARANCE {
+            if !taken.get(l).copied().unwrap_or(false) {
+                return Beside::Free;
+            }
+            found = Beside::TakenOnly;
+        }
+    }
+    found
 }
 
 #[cfg(test)]
