@@ -274,9 +274,11 @@ impl FastSlam {
             cones,
             &particle.pose,
             self.run.config.loop_min_returned.max(cones.len() / 2),
-            // A particle's drift can exceed half a cone spacing.
+            // As in the graph: beyond half a cone spacing a fit one spacing
+            // along a regular row can score best, so a larger correction
+            // needs the start line's big orange cones to confirm it.
             align::Reach {
-                unambiguous: align::BASE_SHIFT,
+                unambiguous: align::unambiguous_shift(&old),
                 max_shift: align::BASE_SHIFT,
             },
         )
