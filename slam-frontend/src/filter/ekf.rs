@@ -18,12 +18,23 @@ use cairn_core::se2::normalize_angle;
 use nalgebra::{DMatrix, DVector, Matrix2, Matrix3, SMatrix, Vector2, Vector3};
 use std::time::Instant;
 
+mod storage;
+
 /// State entries of the pose (x, y, θ).
 const POSE: usize = 3;
 /// The state entry of the yaw-rate bias (rad/s), after the pose.
 const BIAS: usize = 3;
 /// State entries before the landmarks': the pose and the bias.
 const ROBOT: usize = 4;
+
+/// χ² (3 degrees of freedom, 99%) of a recognised place's offset from the
+/// pose beyond which the gates would not have matched the start's
+/// landmarks, and the place is fused as a measurement of the pose.
+const PLACE_FIX_CHI2: f64 = 11.34;
+
+/// σ of a recognised place (m, m, rad): the start landmarks fitted to a
+/// scan's detections.
+const PLACE_SIGMA: Vector3<f64> = Vector3::new(0.1, 0.1, 0.01);
 
 /// The robot's block of the covariance.
 type RobotMatrix = SMatrix<f64, ROBOT, ROBOT>;
@@ -191,6 +202,9 @@ impl EkfSlam {
             }
             Ok(None) => {}
         }
+        if self.run.at_start(&self.pose()) {
+            self.fix_pose_by_recognition(cones);
+        }
 
         let measurements: Vec<_> = cones
             .iter()
@@ -277,6 +291,41 @@ impl EkfSlam {
         self.x
             .fixed_rows_mut::<3>(0)
             .copy_from(&pose.compose(&delta).to_vector());
+    }
+
+    /// Back in the start area with a drift the gates do not cover: where
+    /// place recognition puts the car ([`Run::recognise`]) is fused as a
+    /// measurement of the pose, so the pose and, through their
+    /// correlations, the landmarks move towards it, and the scan's
+    /// detections can then match the start's landmarks and close the loop.
+    fn fix_pose_by_recognition(&mut self, cones: &[Detection]) {
+        let pose = self.pose();
+        let live = self.landmarks.iter().filter_map(|lm| {
+            let slot = lm.slot?;
+            Some((self.x.fixed_rows::<2>(slot).into_owned(), &lm.sighting))
+        });
+        let Some(place) = self.run.recognise(&pose, cones, live) else {
+            return;
+        };
+        let mut nu = place.to_vector() - pose.to_vector();
+        nu[2] = normalize_angle(nu[2]);
+        let p_rr = self.pose_cov();
+        let beyond_gates = p_rr
+            .try_inverse()
+            .is_some_and(|inverse| nu.dot(&(inverse * nu)) > PLACE_FIX_CHI2);
+        let r = Matrix3::from_diagonal(&PLACE_SIGMA.map(|s| s * s));
+        let Some(s_inv) = (p_rr + r).try_inverse().filter(|_| beyond_gates) else {
+            return;
+        };
+        // H = [I₃ 0]: P Hᵀ is P's first three columns.
+        let n = self.dim;
+        let pht = self.p.view((0, 0), (n, POSE)).into_owned();
+        let gain = &pht * s_inv;
+        self.x.rows_mut(0, n).gemv(1.0, &gain, &nu, 1.0);
+        self.x[2] = normalize_angle(self.x[2]);
+        self.p
+            .view_mut((0, 0), (n, n))
+            .gemm(-1.0, &gain, &pht.transpose(), 1.0);
     }
 
     /// The association of every detection of the scan.
@@ -444,48 +493,6 @@ impl EkfSlam {
         l
     }
 
-    /// Two zeroed state entries for landmark `l`, growing the storage by
-    /// doubling. Returns the slot.
-    fn push_slot(&mut self, l: usize) -> usize {
-        let slot = self.dim;
-        if slot + 2 > self.x.len() {
-            let capacity = 2 * self.x.len();
-            let mut p = DMatrix::zeros(capacity, capacity);
-            p.view_mut((0, 0), (slot, slot))
-                .copy_from(&self.p.view((0, 0), (slot, slot)));
-            self.p = p;
-            self.x.resize_vertically_mut(capacity, 0.0);
-            self.pht = DMatrix::zeros(capacity, 2);
-            self.gain = DMatrix::zeros(capacity, 2);
-        }
-        self.x.fixed_rows_mut::<2>(slot).fill(0.0);
-        self.p.view_mut((slot, 0), (2, slot + 2)).fill(0.0);
-        self.p.view_mut((0, slot), (slot + 2, 2)).fill(0.0);
-        self.owners.push(l);
-        self.dim += 2;
-        slot
-    }
-
-    /// Drops landmark `l` from the state: the last slot moves into its place.
-    fn remove(&mut self, l: usize) {
-        let Some(slot) = self.landmarks[l].slot.take() else {
-            return;
-        };
-        let last = self.dim - 2;
-        if slot != last {
-            for k in 0..2 {
-                self.x.swap_rows(slot + k, last + k);
-                self.p.swap_rows(slot + k, last + k);
-                self.p.swap_columns(slot + k, last + k);
-            }
-            let moved = self.owners[(last - ROBOT) / 2];
-            self.owners[(slot - ROBOT) / 2] = moved;
-            self.landmarks[moved].slot = Some(slot);
-        }
-        self.owners.pop();
-        self.dim -= 2;
-    }
-
     /// Counts misses of landmarks well inside the field of view and drops
     /// tentative ones missed more often than seen.
     fn count_misses(&mut self, pose: &SE2, associated: &[bool], scan: usize) {
@@ -507,18 +514,6 @@ impl EkfSlam {
         }
         for l in dropped {
             self.remove(l);
-        }
-    }
-
-    /// Keeps P symmetric against round-off from the one-sided downdates.
-    fn symmetrise(&mut self) {
-        let n = self.dim;
-        for i in 0..n {
-            for j in 0..i {
-                let v = 0.5 * (self.p[(i, j)] + self.p[(j, i)]);
-                self.p[(i, j)] = v;
-                self.p[(j, i)] = v;
-            }
         }
     }
 

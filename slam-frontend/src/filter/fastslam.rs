@@ -7,7 +7,6 @@ use super::particle::{Landmark, Particle, Step, proposal, push_step, refine};
 use super::{Choice, Run, beside, candidates, landmark_from, measurement};
 use crate::color::Color;
 use crate::files::{Association, StampedPose};
-use crate::frontend::align;
 use crate::frontend::association::Correlation;
 use crate::frontend::{FrontEndConfig, MERGE_RADIUS, Mode, Timing};
 use crate::log::{Detection, Record};
@@ -227,7 +226,13 @@ impl FastSlam {
         let recognised = if self.run.lap_closed(&pose, returned) {
             Some(pose)
         } else if self.run.at_start(&pose) {
-            self.recognise(&self.particles[best], cones)
+            let particle = &self.particles[best];
+            let live = particle.map.iter().filter(|lm| !lm.removed);
+            self.run.recognise(
+                &particle.pose,
+                cones,
+                live.map(|lm| (lm.mean, &lm.sighting)),
+            )
         } else {
             None
         };
@@ -249,40 +254,6 @@ impl FastSlam {
         } else {
             self.resample();
         }
-    }
-
-    /// Place recognition for a particle whose drift hides the start
-    /// landmarks from the association gates ([`align::recognise`]).
-    fn recognise(&self, particle: &Particle, cones: &[Detection]) -> Option<SE2> {
-        let distance = self.run.motion.distance();
-        let reach = self.run.config.max_range + 5.0;
-        let old: Vec<(Vector2<f64>, Color)> = particle
-            .map
-            .iter()
-            .filter(|lm| {
-                !lm.removed
-                    && lm.sighting.confirmed
-                    && lm.sighting.view == View::Left
-                    && lm.sighting.is_start_area(distance, particle.pose.theta)
-                    && (lm.mean - particle.pose.t).norm() < reach
-            })
-            .map(|lm| (lm.mean, lm.sighting.color()))
-            .collect();
-        align::recognise(
-            &old,
-            cones,
-            cones,
-            &particle.pose,
-            self.run.config.loop_min_returned.max(cones.len() / 2),
-            // As in the graph: beyond half a cone spacing a fit one spacing
-            // along a regular row can score best, so a larger correction
-            // needs the start line's big orange cones to confirm it.
-            align::Reach {
-                unambiguous: align::unambiguous_shift(&old),
-                max_shift: align::BASE_SHIFT,
-            },
-        )
-        .and_then(|r| r.anchored())
     }
 
     /// Moves a particle to `place` at a loop closure. The landmarks it made

@@ -17,7 +17,7 @@ use crate::frontend::{FrontEndConfig, Mode, Timing, chi2_99};
 use crate::log::{Detection, Record};
 use crate::map::Cone;
 use crate::motion::{Correction, Odometry};
-use crate::sighting::{ColorRate, Sighting, near_start};
+use crate::sighting::{ColorRate, Sighting, View, near_start};
 use cairn_core::SE2;
 use cairn_core::se2::normalize_angle;
 use nalgebra::{Matrix2, Matrix3, SMatrix, Vector2};
@@ -202,6 +202,44 @@ impl Run {
     /// Whether `pose` is back where the run began, while mapping.
     fn at_start(&self, pose: &SE2) -> bool {
         self.mode == Mode::Mapping && self.first_pose.is_some_and(|f| near_start(&f, pose))
+    }
+
+    /// Place recognition back in the start area, for a filter whose drift
+    /// hides the start landmarks from the association gates
+    /// ([`align::recognise`]): where `cones` put the car among the
+    /// `landmarks` (mean and sighting) it left the start area with.
+    fn recognise<'a>(
+        &self,
+        pose: &SE2,
+        cones: &[Detection],
+        landmarks: impl Iterator<Item = (Vector2<f64>, &'a Sighting)>,
+    ) -> Option<SE2> {
+        let distance = self.motion.distance();
+        let reach = self.config.max_range + 5.0;
+        let old: Vec<(Vector2<f64>, Color)> = landmarks
+            .filter(|(mean, sighting)| {
+                sighting.confirmed
+                    && sighting.view == View::Left
+                    && sighting.is_start_area(distance, pose.theta)
+                    && (mean - pose.t).norm() < reach
+            })
+            .map(|(mean, sighting)| (mean, sighting.color()))
+            .collect();
+        align::recognise(
+            &old,
+            cones,
+            cones,
+            pose,
+            self.config.loop_min_returned.max(cones.len() / 2),
+            // As in the graph: beyond half a cone spacing a fit one spacing
+            // along a regular row can score best, so a larger correction
+            // needs the start line's big orange cones to confirm it.
+            align::Reach {
+                unambiguous: align::unambiguous_shift(&old),
+                max_shift: align::BASE_SHIFT,
+            },
+        )
+        .and_then(|r| r.anchored())
     }
 
     /// Whether a lap ends at `pose` with `returned` landmarks back in view.
