@@ -1,6 +1,8 @@
 //! Every estimator behind the `Estimator` interface on scenarios with known
 //! answers: a car standing still, a straight drive, and a simulated loop.
 
+mod common;
+
 use cairn_core::SE2;
 use cairn_fs_tools::configs::assumed_config;
 use cairn_fs_tools::eval::{Report, evaluate};
@@ -448,14 +450,7 @@ fn ekf_slam_closes_a_loop_its_drift_hides_from_the_gates() {
     // detections right). Place recognition now finds where the scan fits
     // and fuses that as a measurement of the pose.
     let (track, course) = random_track(34, &TrackRules::default());
-    let sim = simulate(
-        &track,
-        &course,
-        &SimConfig {
-            seed: 34,
-            ..SimConfig::default()
-        },
-    );
+    let sim = common::simulate_seed(&track, &course, 34);
     let config = assumed_config(
         "standard",
         AssociationMethod::MaximumLikelihood,
