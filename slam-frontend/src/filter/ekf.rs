@@ -5,10 +5,10 @@
 //! keeps updating those it has jointly with the pose, so later laps refine
 //! the map; a map given with [`EkfSlam::with_map`] stays fixed.
 
-use super::{Choice, Run, beside, candidates, landmark_from, measurement, predict};
+use super::{Choice, Run, candidates, landmark_from, measurement, predict};
 use crate::files::{Association, StampedPose};
 use crate::frontend::association::{Correlation, Pair};
-use crate::frontend::{FrontEndConfig, Mode, Timing};
+use crate::frontend::{FrontEndConfig, Mode, Timing, beside};
 use crate::log::{Detection, Record};
 use crate::map::Cone;
 use crate::motion::compose_jacobians;

@@ -4,11 +4,11 @@
 //! scan's matched observations into the proposal it samples from.
 
 use super::particle::{Landmark, Particle, Step, proposal, push_step, refine};
-use super::{Choice, Run, beside, candidates, landmark_from, measurement};
+use super::{Choice, Run, candidates, landmark_from, measurement};
 use crate::color::Color;
 use crate::files::{Association, StampedPose};
 use crate::frontend::association::Correlation;
-use crate::frontend::{FrontEndConfig, MERGE_RADIUS, Mode, Timing};
+use crate::frontend::{FrontEndConfig, MERGE_RADIUS, Mode, Timing, beside};
 use crate::log::{Detection, Record};
 use crate::map::Cone;
 use crate::motion::compose_jacobians;

@@ -13,7 +13,7 @@ use crate::color::Color;
 use crate::files::Association;
 use crate::frontend::align;
 use crate::frontend::association::{Candidates, Correlation, Pair, associate};
-use crate::frontend::{FrontEndConfig, Mode, Timing, chi2_99};
+use crate::frontend::{Beside, FrontEndConfig, Mode, Timing, chi2_99};
 use crate::log::{Detection, Record};
 use crate::map::Cone;
 use crate::motion::{Correction, Odometry};
@@ -106,27 +106,6 @@ pub enum Choice {
     New,
     /// Ignore the detection (ambiguous, spurious, or localising).
     Reject,
-}
-
-/// A distance below which an unmatched detection is taken for a poorly
-/// matched old landmark rather than a new cone (m), unless that landmark
-/// explains another detection of the same scan.
-const NEW_LANDMARK_CLEARANCE: f64 = 0.8;
-
-/// What stands within [`NEW_LANDMARK_CLEARANCE`] of an unmatched detection.
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
-enum Beside {
-    /// No landmark: the detection starts one beyond `new_landmark_gate`.
-    Nothing,
-    /// Only landmarks that explain another detection of the scan. One
-    /// landmark explains one detection per scan, so beyond the individual
-    /// `gate` this is a second cone beside them, as in the graph front end
-    /// (cones 0.3–0.45 m apart had been left unmapped). Within the gate it
-    /// may be the cone whose landmark another detection took.
-    TakenOnly,
-    /// A landmark no detection of the scan explains: most likely this
-    /// detection's, poorly matched.
-    Free,
 }
 
 /// State every filter keeps about the run besides its estimate: settings,
@@ -302,7 +281,7 @@ impl Run {
 
     /// Chooses for every detection of `scan`. `nearest[i]` is the χ² of the
     /// nearest landmark even beyond the gate; `beside(i, taken)` says what
-    /// lies within [`NEW_LANDMARK_CLEARANCE`] of detection `i`, `taken[l]`
+    /// lies within 0.8 m of detection `i` (`crate::frontend::beside`), `taken(l)`
     /// being whether landmark `l` explains a detection of the scan.
     fn choose(
         &self,
@@ -311,7 +290,7 @@ impl Run {
         nearest: &[f64],
         tracked: &[Option<usize>],
         correlation: Correlation,
-        beside: impl Fn(usize, &[bool]) -> Beside,
+        beside: impl Fn(usize, &dyn Fn(usize) -> bool) -> Beside,
     ) -> Vec<Choice> {
         if let Some(known) = &self.known {
             return (0..candidates.len())
@@ -342,6 +321,7 @@ impl Run {
             .map(|(i, a)| match a {
                 Some(l) => Choice::Landmark(*l),
                 None if self.mode == Mode::Mapping => {
+                    let taken = |l: usize| taken.get(l).copied().unwrap_or(false);
                     let clear = match beside(i, &taken) {
                         Beside::Nothing => nearest[i] > self.config.new_landmark_gate,
                         Beside::TakenOnly => nearest[i] > self.config.gate,
@@ -457,26 +437,6 @@ fn candidates<'a>(
             (pairs, nearest)
         })
         .unzip()
-}
-
-/// What lies within [`NEW_LANDMARK_CLEARANCE`] of `point` among the
-/// landmarks (index and mean); `taken[l]` says landmark `l` explains a
-/// detection of the scan.
-fn beside<'a>(
-    point: &Vector2<f64>,
-    landmarks: impl Iterator<Item = (usize, &'a Vector2<f64>)>,
-    taken: &[bool],
-) -> Beside {
-    let mut found = Beside::Nothing;
-    for (l, m) in landmarks {
-        if (m - point).norm() <= NEW_LANDMARK_CLEARANCE {
-            if !taken.get(l).copied().unwrap_or(false) {
-                return Beside::Free;
-            }
-            found = Beside::TakenOnly;
-        }
-    }
-    found
 }
 
 #[cfg(test)]

@@ -24,13 +24,55 @@ const SEEN_WHOLE: f64 = 0.1;
 /// simulator presets (p ≥ 0.8) at [`SEEN_WHOLE`].
 const SEEN_WHOLE_SHARE: f64 = 0.25;
 
+/// A distance below which an unmatched detection is taken for a poorly
+/// matched old landmark rather than a new cone (m), unless that landmark
+/// explains another detection of the same scan.
+const NEW_LANDMARK_CLEARANCE: f64 = 0.8;
+
+/// What stands within [`NEW_LANDMARK_CLEARANCE`] of an unmatched detection.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub(crate) enum Beside {
+    /// No landmark: the detection starts one beyond `new_landmark_gate`.
+    Nothing,
+    /// Only landmarks that explain another detection of the scan. One
+    /// landmark explains one detection per scan, so this is a second cone
+    /// beside them (cones 0.3–0.45 m apart had been left unmapped by the
+    /// filters). The filters ask the detection to lie beyond the
+    /// individual `gate` too: within it, it may be the cone whose landmark
+    /// another detection took.
+    TakenOnly,
+    /// A landmark no detection of the scan explains: most likely this
+    /// detection's, poorly matched.
+    Free,
+}
+
+/// What lies within [`NEW_LANDMARK_CLEARANCE`] of `point` among the
+/// landmarks (index and mean); `taken(l)` says landmark `l` explains a
+/// detection of the scan.
+pub(crate) fn beside<'a>(
+    point: &Vector2<f64>,
+    landmarks: impl Iterator<Item = (usize, &'a Vector2<f64>)>,
+    taken: impl Fn(usize) -> bool,
+) -> Beside {
+    let mut found = Beside::Nothing;
+    for (l, m) in landmarks {
+        if (m - point).norm() <= NEW_LANDMARK_CLEARANCE {
+            if !taken(l) {
+                return Beside::Free;
+            }
+            found = Beside::TakenOnly;
+        }
+    }
+    found
+}
+
 impl GraphSlam {
     /// Whether an unmatched detection starts a new landmark: no free live
-    /// landmark lies within 0.8 m (it would be a poorly matched old one),
-    /// and either a landmark this scan already matched does (one landmark
-    /// explains one detection per scan, so this is a second cone beside
-    /// it, like the start's paired big orange cones) or the nearest
-    /// landmark is beyond the new-landmark gate.
+    /// landmark lies within [`NEW_LANDMARK_CLEARANCE`] (it would be a
+    /// poorly matched old one), and either a landmark this scan already
+    /// matched does ([`Beside::TakenOnly`], like the start's paired big
+    /// orange cones) or the nearest landmark is beyond the new-landmark
+    /// gate.
     pub(super) fn is_new_cone(
         &self,
         pose: &SE2,
@@ -39,18 +81,15 @@ impl GraphSlam {
         taken: &[bool],
     ) -> bool {
         let world = pose.transform_point(&d.position);
-        let mut beside_taken = false;
-        for (l, lm) in self.landmarks.iter().enumerate() {
-            if lm.removed || self.alias[l] != l || (lm.mean - world).norm() > 0.8 {
-                continue;
-            }
-            // Landmarks made in this scan explain a detection of it too.
-            if !taken.get(l).copied().unwrap_or(true) {
-                return false;
-            }
-            beside_taken = true;
+        let live = self.landmarks.iter().enumerate();
+        let live = live.filter(|&(l, lm)| !lm.removed && self.alias[l] == l);
+        // Landmarks made in this scan explain a detection of it too.
+        let taken = |l: usize| taken.get(l).copied().unwrap_or(true);
+        match beside(&world, live.map(|(l, lm)| (l, &lm.mean)), taken) {
+            Beside::Free => false,
+            Beside::TakenOnly => true,
+            Beside::Nothing => nearest > self.config.new_landmark_gate,
         }
-        beside_taken || nearest > self.config.new_landmark_gate
     }
 
     pub(super) fn world_cov(

@@ -27,6 +27,7 @@ pub use calibration::Calibration;
 pub use config::{ConfigError, FrontEndConfig};
 use edges::OdometryEdge;
 pub use edges::nearest_information;
+pub(crate) use landmarks::{Beside, beside};
 pub use noise::DetectorNoise;
 pub(crate) use optimise::MERGE_RADIUS;
 
