@@ -19,6 +19,10 @@ use nalgebra::{DMatrix, DVector, Matrix2, Matrix3, SMatrix, Vector2, Vector3};
 use std::time::Instant;
 
 mod storage;
+#[cfg(test)]
+mod tests;
+
+use storage::PENDING;
 
 /// State entries of the pose (x, y, θ).
 const POSE: usize = 3;
@@ -60,9 +64,12 @@ pub struct EkfSlam {
     owners: Vec<usize>,
     poses: Vec<StampedPose>,
     detections: Vec<(usize, usize, Option<usize>)>,
-    /// P Hᵀ and the gain of the current update (capacity × 2).
+    /// P Hᵀ of the current update (capacity × 2).
     pht: DMatrix<f64>,
-    gain: DMatrix<f64>,
+    /// The downdates not yet applied to `p`: the covariance is
+    /// P − U Uᵀ with U the first `rank` columns (capacity × [`PENDING`]).
+    pending: DMatrix<f64>,
+    rank: usize,
     /// The bias's random walk (rad/s/√s).
     bias_walk: f64,
 }
@@ -93,7 +100,8 @@ impl EkfSlam {
             poses: Vec::new(),
             detections: Vec::new(),
             pht: DMatrix::zeros(capacity, 2),
-            gain: DMatrix::zeros(capacity, 2),
+            pending: DMatrix::zeros(capacity, PENDING),
+            rank: 0,
             bias_walk: walk,
         }
     }
@@ -242,7 +250,7 @@ impl EkfSlam {
                 returned += 1;
             }
         }
-        self.symmetrise();
+        self.flush();
         let pose = self.pose();
 
         self.count_misses(&pose, &associated, scan);
@@ -278,7 +286,9 @@ impl EkfSlam {
         let n = self.dim;
         let p_rr = self.p.fixed_view::<ROBOT, ROBOT>(0, 0).into_owned();
         let p_rr = f * p_rr * f.transpose() + noise;
-        self.p.fixed_view_mut::<ROBOT, ROBOT>(0, 0).copy_from(&p_rr);
+        self.p
+            .fixed_view_mut::<ROBOT, ROBOT>(0, 0)
+            .copy_from(&(0.5 * (p_rr + p_rr.transpose())));
         if n > ROBOT {
             let cross = f * self.p.view((0, ROBOT), (ROBOT, n - ROBOT));
             self.p
@@ -314,18 +324,28 @@ impl EkfSlam {
             .try_inverse()
             .is_some_and(|inverse| nu.dot(&(inverse * nu)) > PLACE_FIX_CHI2);
         let r = Matrix3::from_diagonal(&PLACE_SIGMA.map(|s| s * s));
-        let Some(s_inv) = (p_rr + r).try_inverse().filter(|_| beyond_gates) else {
+        let Some(l_inv) = (p_rr + r)
+            .cholesky()
+            .and_then(|c| c.l().try_inverse())
+            .filter(|_| beyond_gates)
+        else {
             return;
         };
-        // H = [I₃ 0]: P Hᵀ is P's first three columns.
+        // H = [I₃ 0]: P Hᵀ is P's first three columns; the downdate is
+        // W Wᵀ with W = P Hᵀ L⁻ᵀ, as in a landmark's update.
+        self.flush();
         let n = self.dim;
-        let pht = self.p.view((0, 0), (n, POSE)).into_owned();
-        let gain = &pht * s_inv;
-        self.x.rows_mut(0, n).gemv(1.0, &gain, &nu, 1.0);
+        let mut w = self.pending.view_mut((0, 0), (n, POSE));
+        w.gemm(
+            1.0,
+            &self.p.view((0, 0), (n, POSE)),
+            &l_inv.transpose(),
+            0.0,
+        );
+        self.x.rows_mut(0, n).gemv(1.0, &w, &(l_inv * nu), 1.0);
         self.x[2] = normalize_angle(self.x[2]);
-        self.p
-            .view_mut((0, 0), (n, n))
-            .gemm(-1.0, &gain, &pht.transpose(), 1.0);
+        self.rank = POSE;
+        self.flush();
     }
 
     /// The association of every detection of the scan.
@@ -399,9 +419,13 @@ impl EkfSlam {
     /// The joint EKF update with one range-bearing measurement of the
     /// landmark at `slot`; H is non-zero in the pose and landmark columns
     /// only, so P Hᵀ takes 5 columns of P and the update is a rank-2
-    /// downdate. False when the prediction is degenerate.
+    /// downdate of P, left pending (see [`EkfSlam::flush`]). False when the
+    /// prediction is degenerate.
     fn update_joint(&mut self, slot: usize, z: &Vector2<f64>, r: &Matrix2<f64>) -> bool {
-        let n = self.dim;
+        if self.rank + 2 > PENDING {
+            self.flush();
+        }
+        let (n, rank) = (self.dim, self.rank);
         let pose = self.pose();
         let m = self.x.fixed_rows::<2>(slot).into_owned();
         let Some(pred) = predict(&pose, &m) else {
@@ -412,20 +436,27 @@ impl EkfSlam {
         let mut pht = self.pht.view_mut((0, 0), (n, 2));
         pht.gemm(1.0, &p.columns(0, POSE), &pred.h_pose.transpose(), 0.0);
         pht.gemm(1.0, &p.columns(slot, 2), &pred.h_landmark.transpose(), 1.0);
+        if rank > 0 {
+            // With the downdates pending, P Hᵀ = P₀ Hᵀ − U (H U)ᵀ.
+            let u = self.pending.view((0, 0), (n, rank));
+            let mut uht = SMatrix::<f64, PENDING, 2>::zeros();
+            let mut uht = uht.rows_mut(0, rank);
+            uht.gemm_tr(1.0, &u.rows(0, POSE), &pred.h_pose.transpose(), 0.0);
+            uht.gemm_tr(1.0, &u.rows(slot, 2), &pred.h_landmark.transpose(), 1.0);
+            pht.gemm(-1.0, &u, &uht, 1.0);
+        }
         let s =
             pred.h_pose * pht.fixed_rows::<3>(0) + pred.h_landmark * pht.fixed_rows::<2>(slot) + r;
-        let Some(s_inv) = s.try_inverse() else {
+        // S = LLᵀ; with W = P Hᵀ L⁻ᵀ the gain is W L⁻¹ and the downdate
+        // P Hᵀ S⁻¹ H P is W Wᵀ, symmetric by construction.
+        let Some(l_inv) = s.cholesky().and_then(|c| c.l().try_inverse()) else {
             return false;
         };
-        let mut gain = self.gain.view_mut((0, 0), (n, 2));
-        gain.gemm(1.0, &pht, &s_inv, 0.0);
-        self.x.rows_mut(0, n).gemv(1.0, &gain, &nu, 1.0);
+        let mut w = self.pending.view_mut((0, rank), (n, 2));
+        w.gemm(1.0, &pht, &l_inv.transpose(), 0.0);
+        self.x.rows_mut(0, n).gemv(1.0, &w, &(l_inv * nu), 1.0);
         self.x[2] = normalize_angle(self.x[2]);
-        // P ← P − K (P Hᵀ)ᵀ, one column pair at a time.
-        let mut p = self.p.view_mut((0, 0), (n, n));
-        for c in 0..2 {
-            p.ger(-1.0, &gain.column(c), &pht.column(c), 1.0);
-        }
+        self.rank += 2;
         true
     }
 
@@ -433,6 +464,7 @@ impl EkfSlam {
     /// updated, with the landmark's own uncertainty added to the
     /// measurement noise.
     fn update_pose(&mut self, slot: usize, z: &Vector2<f64>, r: &Matrix2<f64>) -> bool {
+        self.flush();
         let pose = self.pose();
         let m = self.x.fixed_rows::<2>(slot).into_owned();
         let Some(pred) = predict(&pose, &m) else {
@@ -470,6 +502,7 @@ impl EkfSlam {
         d: &Detection,
         scan: usize,
     ) -> usize {
+        self.flush();
         let pose = self.pose();
         let (m, j_pose, j_z) = landmark_from(&pose, z);
         let l = self.landmarks.len();
@@ -483,7 +516,9 @@ impl EkfSlam {
             .copy_from(&cross.transpose());
         let p_rr = self.pose_cov();
         let p_mm = j_pose * p_rr * j_pose.transpose() + j_z * r * j_z.transpose();
-        self.p.fixed_view_mut::<2, 2>(slot, slot).copy_from(&p_mm);
+        self.p
+            .fixed_view_mut::<2, 2>(slot, slot)
+            .copy_from(&(0.5 * (p_mm + p_mm.transpose())));
         self.x.fixed_rows_mut::<2>(slot).copy_from(&m);
         let distance = self.run.motion.distance();
         self.landmarks.push(Landmark {
