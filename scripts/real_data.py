@@ -9,7 +9,9 @@ docs/real-data.md and a map plot per robot.
 """
 
 import argparse
+import csv
 import json
+import math
 import os
 import re
 import subprocess
@@ -31,16 +33,59 @@ def run(cmd):
 def score(cairn, truth, folder, plot=None, title=None):
     """fs-eval's report with the map placed by its best rigid alignment first
     (`--align`, as the real-data issue counts "mapped"); the ATE is the
-    trajectory's in its own frame, as the log's start pose put it."""
+    trajectory's in its own frame, as the log's start pose put it. Its
+    `matches` are the landmarks matched one-to-one, by true cone."""
     cmd = [cairn, "fs-eval", "--truth", truth, "--map", folder + "/map.csv",
            "--traj", folder + "/traj.tum", "--assoc", folder + "/assoc.csv", "--json"]
     unplaced = json.loads(run(cmd).stdout)
-    cmd.append("--align")
+    cmd += ["--align", "--matches-out", folder + "/matches.csv"]
     if plot:
         cmd += ["--plot", plot, "--title", title]
     report = json.loads(run(cmd).stdout)
     report["ate"] = unplaced["ate"]
+    with open(folder + "/matches.csv") as f:
+        report["matches"] = {int(r["truth_index"]): (float(r["x"]), float(r["y"]),
+                                                    float(r["truth_x"]), float(r["truth_y"]))
+                             for r in csv.DictReader(f)}
     return report
+
+
+def aligned_rmse(pairs):
+    """RMSE of estimated points (x, y) to true ones after their best rigid
+    alignment (2-D Kabsch)."""
+    n = len(pairs)
+    ex = sum(p[0] for p in pairs) / n
+    ey = sum(p[1] for p in pairs) / n
+    tx = sum(p[2] for p in pairs) / n
+    ty = sum(p[3] for p in pairs) / n
+    dot = sum((p[0] - ex) * (p[2] - tx) + (p[1] - ey) * (p[3] - ty) for p in pairs)
+    cross = sum((p[0] - ex) * (p[3] - ty) - (p[1] - ey) * (p[2] - tx) for p in pairs)
+    a = math.atan2(cross, dot)
+    c, s = math.cos(a), math.sin(a)
+    err = sum((c * (p[0] - ex) - s * (p[1] - ey) - (p[2] - tx)) ** 2
+              + (s * (p[0] - ex) + c * (p[1] - ey) - (p[3] - ty)) ** 2 for p in pairs)
+    return math.sqrt(err / n)
+
+
+def against_graph(reports):
+    """Each filter run's map RMSE beside the graph's with the same
+    association method, both over the true landmarks both mapped, each map
+    aligned on those alone."""
+    lines = ["| filter run | landmarks both mapped | filter's map RMSE (m) "
+             "| graph's, same landmarks (m) |", "|---|---|---|---|"]
+    for (estimator, method), r in reports.items():
+        if estimator == "graph":
+            continue
+        graph = reports[("graph", method)]["matches"]
+        common = sorted(set(r["matches"]) & set(graph))
+        if len(common) < 3:
+            lines.append("| %s, %s | %d | – | – |" % (estimator, method, len(common)))
+            continue
+        mine = aligned_rmse([r["matches"][i] for i in common])
+        theirs = aligned_rmse([graph[i] for i in common])
+        lines.append("| %s, %s | %d | %.3f | %.3f |" % (estimator, method, len(common), mine,
+                                                        theirs))
+    return "\n".join(lines)
 
 
 def row(label, r):
@@ -68,6 +113,7 @@ def robot_section(a, dataset, name, robot, work, config, plot):
          "--config", config, "--map-out", plain + "/map.csv", "--traj-out", plain + "/traj.tum",
          "--assoc-out", plain + "/assoc.csv"])
     lines.append(row("batch smoother, barcodes as associations", score(a.cairn, plain, plain)))
+    reports = {}
     for folder, methods, tag in [(plain, ASSOCIATIONS, ""), (ids, ["tracking"], ", `--ids`")]:
         for estimator in ESTIMATORS:
             for method in methods:
@@ -80,7 +126,10 @@ def robot_section(a, dataset, name, robot, work, config, plot):
                     path = os.path.join(ROOT, plot % robot)
                     title = "MRCLAM %s, robot %d: graph SLAM, ml" % (name, robot)
                 r = score(a.cairn, plain, folder, path, title)
+                reports[(estimator, method)] = r
                 lines.append(row("%s, %s%s" % (estimator, method, tag), r))
+    lines += ["", "Over the true landmarks both mapped (`--ids` runs: tracking):", "",
+              against_graph(reports)]
     print("%s robot %d done" % (name, robot))
     return "\n".join(lines)
 

@@ -554,4 +554,18 @@ fn fs_eval_align_places_a_turned_map_on_the_truth() {
     assert!(placed["map_rmse"].as_f64().unwrap() < 1e-6, "{placed}");
     let table = String::from_utf8_lossy(&score(&["--align"])).to_string();
     assert!(table.contains("its best rigid alignment"), "{table}");
+    // Each landmark lands on the true cone it was made from, in its row.
+    let matches = dir.join("matches.csv");
+    score(&["--align", "--matches-out", s(&matches)]);
+    let rows = std::fs::read_to_string(&matches).unwrap();
+    let mut lines = rows.lines();
+    assert_eq!(lines.next(), Some("truth_index,x,y,truth_x,truth_y"));
+    let mut count = 0;
+    for (k, line) in lines.enumerate() {
+        let f: Vec<f64> = line.split(',').map(|v| v.parse().unwrap()).collect();
+        assert_eq!(f[0], k as f64, "{rows}");
+        assert!((f[1] - f[3]).hypot(f[2] - f[4]) < 1e-6, "{line}");
+        count += 1;
+    }
+    assert_eq!(count, 20, "{rows}");
 }

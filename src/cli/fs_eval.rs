@@ -3,7 +3,7 @@
 use super::fs::{TRUTH_ASSOC, TRUTH_MAP, TRUTH_TRAJ, read_text};
 use super::{bad_input, file_name};
 use cairn::fs_tools::eval::{
-    MATCH_RADIUS, Report, evaluate, latency_ms, one_to_one_accuracy, place,
+    MATCH_RADIUS, Report, evaluate, latency_ms, map_labels, one_to_one_accuracy, place,
     placement_by_associations, position_errors,
 };
 use cairn::fs_tools::placement::best_placement;
@@ -12,6 +12,7 @@ use cairn::slam::Cone;
 use cairn::slam::files::{self, StampedPose};
 use cairn::slam::map::map_from_csv;
 use clap::Args;
+use std::fmt::Write as _;
 use std::path::{Path, PathBuf};
 
 /// Options of `cairn fs-eval`.
@@ -58,6 +59,11 @@ pub struct EvalArgs {
     /// The plot's title (default: the map's file name and the truth's folder).
     #[arg(long)]
     title: Option<String>,
+    /// Write each landmark's one-to-one match to a true cone as CSV
+    /// (`truth_index,x,y,truth_x,truth_y`, in the frame the map was scored
+    /// in), to compare maps over the cones they both mapped.
+    #[arg(long)]
+    matches_out: Option<PathBuf>,
 }
 
 pub fn run_eval(a: EvalArgs) -> Result<(), super::CliError> {
@@ -163,6 +169,9 @@ pub fn run_eval(a: EvalArgs) -> Result<(), super::CliError> {
             .zip(sigma("estimated"))
             .map(|(a, e)| [a, e]);
     }
+    if let Some(path) = &a.matches_out {
+        super::write_output(path, matches_csv(&truth_map, &map).as_bytes())?;
+    }
     if let Some(path) = &a.plot {
         plot_run(
             path,
@@ -182,6 +191,27 @@ pub fn run_eval(a: EvalArgs) -> Result<(), super::CliError> {
         print!("{}", table(&report));
     }
     Ok(())
+}
+
+/// The landmarks matched one-to-one to true cones, as `--matches-out`
+/// writes them, in the true cones' order.
+fn matches_csv(truth_map: &[Cone], map: &[Cone]) -> String {
+    let mut pairs: Vec<(usize, &Cone)> = map_labels(truth_map, map)
+        .into_iter()
+        .zip(map)
+        .filter_map(|(i, lm)| Some((i?, lm)))
+        .collect();
+    pairs.sort_by_key(|(i, _)| *i);
+    let mut csv = String::from("truth_index,x,y,truth_x,truth_y\n");
+    for (i, lm) in pairs {
+        let t = truth_map[i].position;
+        let _ = writeln!(
+            csv,
+            "{i},{},{},{},{}",
+            lm.position.x, lm.position.y, t.x, t.y
+        );
+    }
+    csv
 }
 
 /// `MAP.csv against TRUTH`: the names of the map file and the truth's folder.
