@@ -147,10 +147,7 @@ pub fn run(a: StudyArgs) -> Result<(), super::CliError> {
          `graph` is the pose/landmark graph of `docs/fs-slam.md`; `ekf` is EKF-SLAM with the \
          full joint covariance; `fastslam1`/`fastslam2` are FastSLAM 1.0/2.0 with a 2×2 EKF \
          per landmark per particle and the best particle's map. \
-         The tracks are the first shared loop tracks in name order plus a random one: all of \
-         them with 100 particles runs for hours, because EKF-SLAM's O(n²) update on \
-         eufs_hairpins (about 1000 landmarks, 33 detections per scan) takes 107 s per run \
-         (FastSLAM 1.0 with JCBB and 30 particles there 16 s).\n",
+         {}\n",
         a.seeds,
         a.random,
         a.max_tracks
@@ -161,7 +158,12 @@ pub fn run(a: StudyArgs) -> Result<(), super::CliError> {
         runs.len(),
         tracks.len(),
         a.seeds,
-        a.particles
+        a.particles,
+        if a.max_tracks.is_some() {
+            "The tracks are the first shared loop tracks in name order and the random ones."
+        } else {
+            "The tracks are every shared loop track and the random ones."
+        }
     );
     for preset in ["standard", "hard"] {
         let _ = writeln!(

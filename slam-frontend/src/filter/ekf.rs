@@ -552,11 +552,30 @@ impl EkfSlam {
         }
     }
 
-    /// Live, confirmed landmarks in index order.
+    /// Live, confirmed landmarks in index order, less those the whole run
+    /// judges clutter.
     fn map_rows(&self) -> Vec<usize> {
-        (0..self.landmarks.len())
-            .filter(|&l| self.landmarks[l].slot.is_some() && self.landmarks[l].sighting.confirmed)
-            .collect()
+        let live = (0..self.landmarks.len())
+            .filter(|&l| self.landmarks[l].slot.is_some() && self.landmarks[l].sighting.confirmed);
+        let poses: Vec<(usize, SE2)> = self.poses.iter().map(|p| p.pose).enumerate().collect();
+        let matched = self
+            .detections
+            .iter()
+            .filter_map(|&(s, _, l)| Some((s, l?)));
+        let clutter = super::judged_clutter(
+            &self.run.config,
+            &poses,
+            matched,
+            live.clone().map(|l| {
+                let slot = self.landmarks[l].slot.unwrap_or(0);
+                (
+                    l,
+                    self.x.fixed_rows::<2>(slot).into_owned(),
+                    &self.landmarks[l].sighting,
+                )
+            }),
+        );
+        live.filter(|l| !clutter.contains(l)).collect()
     }
 
     /// The map: confirmed landmarks with their marginal covariances.

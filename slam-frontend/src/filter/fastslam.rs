@@ -511,12 +511,26 @@ impl FastSlam {
         self.resamplings += 1;
     }
 
-    /// Confirmed, live landmarks of the best particle, in index order.
+    /// Confirmed, live landmarks of the best particle, in index order, less
+    /// those the whole run judges clutter.
     fn map_rows(&self) -> Vec<usize> {
         let best = self.best();
-        (0..best.map.len())
-            .filter(|&l| !best.map[l].removed && best.map[l].sighting.confirmed)
-            .collect()
+        let live =
+            (0..best.map.len()).filter(|&l| !best.map[l].removed && best.map[l].sighting.confirmed);
+        let poses: Vec<(usize, SE2)> = self.steps().map(|s| (s.scan, s.pose.pose)).collect();
+        let matched = self.steps().flat_map(|s| {
+            s.choices
+                .iter()
+                .filter_map(move |c| Some((s.scan, (*c)? as usize)))
+        });
+        let clutter = super::judged_clutter(
+            &self.run.config,
+            &poses,
+            matched,
+            live.clone()
+                .map(|l| (l, best.map[l].mean, &best.map[l].sighting)),
+        );
+        live.filter(|l| !clutter.contains(l)).collect()
     }
 
     /// The best particle's map: confirmed landmarks with their covariances.

@@ -17,11 +17,11 @@ use crate::frontend::{Beside, FrontEndConfig, Mode, Timing, chi2_99};
 use crate::log::{Detection, Record};
 use crate::map::Cone;
 use crate::motion::{Correction, Odometry};
-use crate::sighting::{ColorRate, Sighting, View, near_start};
+use crate::sighting::{ColorRate, Sighting, View, ViewMargin, in_view_within, near_start};
 use cairn_core::SE2;
 use cairn_core::se2::normalize_angle;
 use nalgebra::{Matrix2, Matrix3, SMatrix, Vector2};
-use std::collections::HashMap;
+use std::collections::{HashMap, HashSet};
 
 /// A landmark's predicted range and bearing from a pose, with Jacobians.
 #[derive(Clone, Copy, Debug)]
@@ -437,6 +437,46 @@ fn candidates<'a>(
             (pairs, nearest)
         })
         .unzip()
+}
+
+/// The landmarks that colours and detections over the whole run call
+/// clutter ([`Sighting::is_clutter`], as the graph judges its map at the
+/// end of the run): leaning to clutter by their colours, and in view from
+/// many of the (scan, pose) `poses` whose scans `matched` (scan, landmark)
+/// does not pair them with. A filter has no final poses: these are its
+/// estimates as it went, so a landmark's colours must lean to clutter
+/// before its misses count, and a cone's never do.
+fn judged_clutter<'a>(
+    config: &FrontEndConfig,
+    poses: &[(usize, SE2)],
+    matched: impl IntoIterator<Item = (usize, usize)>,
+    landmarks: impl IntoIterator<Item = (usize, Vector2<f64>, &'a Sighting)>,
+) -> HashSet<usize> {
+    let mut seen: HashMap<usize, Vec<usize>> = HashMap::new();
+    for (scan, l) in matched {
+        seen.entry(l).or_default().push(scan);
+    }
+    let inverses: Vec<(usize, SE2)> = poses.iter().map(|(k, p)| (*k, p.inverse())).collect();
+    landmarks
+        .into_iter()
+        .filter(|(_, _, sighting)| sighting.clutter_log_odds(config) > 0.0)
+        .filter(|(l, mean, sighting)| {
+            let scans = seen.entry(*l).or_default();
+            scans.sort_unstable();
+            let (mut hits, mut misses) = (0, 0);
+            for (k, inverse) in &inverses {
+                if in_view_within(config, inverse, mean, ViewMargin::FINAL) {
+                    if scans.binary_search(k).is_ok() {
+                        hits += 1;
+                    } else {
+                        misses += 1;
+                    }
+                }
+            }
+            sighting.is_clutter(hits, misses, config)
+        })
+        .map(|(l, _, _)| l)
+        .collect()
 }
 
 #[cfg(test)]
