@@ -307,6 +307,29 @@ pub fn in_view(config: &FrontEndConfig, pose_inverse: &SE2, point: &Vector2<f64>
     in_view_within(config, pose_inverse, point, ViewMargin::WHILE_MAPPING)
 }
 
+/// In how many of the scans whose poses are given (scan index and inverse
+/// pose) `point` lay in view ([`ViewMargin::FINAL`]), split into those in
+/// `seen` (sorted scan indices: the scans that detected it) and the rest:
+/// the hits and misses [`Sighting::is_clutter`] weighs.
+pub fn hits_and_misses<'a>(
+    config: &FrontEndConfig,
+    inverses: impl IntoIterator<Item = (usize, &'a SE2)>,
+    point: &Vector2<f64>,
+    seen: &[usize],
+) -> (u32, u32) {
+    let (mut hits, mut misses) = (0, 0);
+    for (k, inverse) in inverses {
+        if in_view_within(config, inverse, point, ViewMargin::FINAL) {
+            if seen.binary_search(&k).is_ok() {
+                hits += 1;
+            } else {
+                misses += 1;
+            }
+        }
+    }
+    (hits, misses)
+}
+
 /// How far inside the field of view a landmark must lie to count as in
 /// view: the margin covers the errors of the pose and the landmark.
 #[derive(Clone, Copy, Debug)]

@@ -17,7 +17,7 @@ use crate::frontend::{Beside, FrontEndConfig, Mode, Timing, chi2_99};
 use crate::log::{Detection, Record};
 use crate::map::Cone;
 use crate::motion::{Correction, Odometry};
-use crate::sighting::{ColorRate, Sighting, View, ViewMargin, in_view_within, near_start};
+use crate::sighting::{ColorRate, Sighting, View, hits_and_misses, near_start};
 use cairn_core::SE2;
 use cairn_core::se2::normalize_angle;
 use nalgebra::{Matrix2, Matrix3, SMatrix, Vector2};
@@ -456,23 +456,17 @@ fn judged_clutter<'a>(
     for (scan, l) in matched {
         seen.entry(l).or_default().push(scan);
     }
+    for scans in seen.values_mut() {
+        scans.sort_unstable();
+    }
     let inverses: Vec<(usize, SE2)> = poses.iter().map(|(k, p)| (*k, p.inverse())).collect();
     landmarks
         .into_iter()
         .filter(|(_, _, sighting)| sighting.clutter_log_odds(config) > 0.0)
         .filter(|(l, mean, sighting)| {
-            let scans = seen.entry(*l).or_default();
-            scans.sort_unstable();
-            let (mut hits, mut misses) = (0, 0);
-            for (k, inverse) in &inverses {
-                if in_view_within(config, inverse, mean, ViewMargin::FINAL) {
-                    if scans.binary_search(k).is_ok() {
-                        hits += 1;
-                    } else {
-                        misses += 1;
-                    }
-                }
-            }
+            let scans = seen.get(l).map_or(&[][..], Vec::as_slice);
+            let in_view = inverses.iter().map(|(k, inverse)| (*k, inverse));
+            let (hits, misses) = hits_and_misses(config, in_view, mean, scans);
             sighting.is_clutter(hits, misses, config)
         })
         .map(|(l, _, _)| l)

@@ -4,7 +4,7 @@
 use super::optimise::{MERGE_RADIUS, pairs_within};
 use super::{GraphSlam, Landmark, Mode, window};
 use crate::log::Detection;
-use crate::sighting::{Sighting, ViewMargin, in_view, in_view_within};
+use crate::sighting::{Sighting, hits_and_misses, in_view};
 use cairn_core::{DisjointSets, SE2};
 use nalgebra::{Matrix2, Matrix3, SMatrix, Vector2};
 
@@ -156,7 +156,7 @@ impl GraphSlam {
     /// seen in half the scans survives the misses; on eufs_rand that kept
     /// 32 of its 134 clutter objects per run. The final poses say in which
     /// scans each landmark was in view, with a margin for their errors
-    /// ([`ViewMargin::FINAL`]) rather than the mapping's. Judged once: judged after
+    /// ([`ViewMargin::FINAL`](crate::sighting::ViewMargin::FINAL)) rather than the mapping's. Judged once: judged after
     /// every scan, a cone misread a few times early in the second lap was
     /// dropped (epfl_track_3).
     pub(super) fn drop_clutter(&mut self) {
@@ -170,16 +170,8 @@ impl GraphSlam {
             seen.sort_unstable();
             seen.dedup();
             let mean = self.landmarks[l].mean;
-            let (mut hits, mut misses) = (0, 0);
-            for (k, inverse) in inverses.iter().enumerate() {
-                if in_view_within(&self.config, inverse, &mean, ViewMargin::FINAL) {
-                    if seen.binary_search(&k).is_ok() {
-                        hits += 1;
-                    } else {
-                        misses += 1;
-                    }
-                }
-            }
+            let (hits, misses) =
+                hits_and_misses(&self.config, inverses.iter().enumerate(), &mean, seen);
             if self.landmarks[l]
                 .sighting
                 .is_clutter(hits, misses, &self.config)
