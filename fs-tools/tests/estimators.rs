@@ -361,9 +361,16 @@ fn known_correspondences_are_followed_exactly() {
             slam.process(r);
         }
         let report = score(&cones, slam.as_ref(), &run);
+        println!("{kind:?}: {report:?}");
         assert_eq!(report.association_accuracy, 1.0, "{kind:?}: {report:?}");
         assert_eq!(report.phantom, 0, "{kind:?}: {report:?}");
-        assert!(report.map_rmse < 0.1 * slack(kind), "{kind:?}: {report:?}");
+        // The map's shape is right; what is left is its turn about the
+        // start, which 10 s of driving do not pin against the config's
+        // unknown yaw-rate bias (EKF-SLAM predicts 0.12 m from its own
+        // covariance, and measures 0.11 m).
+        let aligned = report.map_rmse_aligned;
+        assert!(aligned < 0.05 * slack(kind), "{kind:?}: {report:?}");
+        assert!(report.map_rmse < 0.15 * slack(kind), "{kind:?}: {report:?}");
     }
 }
 
@@ -412,6 +419,33 @@ fn every_estimator_closes_the_loop_of_a_random_track_and_localises() {
                 .count()
         );
     }
+}
+
+#[test]
+fn ekf_slam_is_as_certain_of_its_map_as_the_graph_and_as_right() {
+    // The bias is a state of EKF-SLAM, as of the graph's full optimisation,
+    // so both weigh each step's turn by the yaw rate's white noise alone
+    // and should end with about the same information about the map.
+    // Weighing the turn by the inflated σ that covers a bias (as before)
+    // gave 1.6× the graph's predicted RMSE on held-out logs.
+    let (track, course) = random_track(2, &TrackRules::default());
+    let sim = simulate(&track, &course, &SimConfig::default());
+    let predicted = |kind| {
+        let config =
+            assumed_config("standard", AssociationMethod::MaximumLikelihood, kind).unwrap();
+        let (_, report) = run_estimator(&sim, &EstimatorBuilder::new(kind, config));
+        println!("{kind:?}: {report:?}");
+        (report.map_rmse_predicted.unwrap(), report.map_nees.unwrap())
+    };
+    let (graph, _) = predicted(EstimatorKind::Graph);
+    let (ekf, nees) = predicted(EstimatorKind::Ekf);
+    assert!(
+        ekf < 1.25 * graph,
+        "EKF predicts {ekf} m, the graph {graph} m"
+    );
+    // NEES is 2 when the covariances are right; EKF-SLAM is known to be
+    // somewhat overconfident.
+    assert!(nees < 4.0, "NEES {nees}");
 }
 
 #[test]

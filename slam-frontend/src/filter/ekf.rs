@@ -11,7 +11,7 @@ use crate::frontend::association::{Correlation, Pair};
 use crate::frontend::{FrontEndConfig, Mode, Timing, beside};
 use crate::log::{Detection, Record};
 use crate::map::Cone;
-use crate::motion::compose_jacobians;
+use crate::motion::{compose_jacobians, with_heading_variance};
 use crate::sighting::{Sighting, in_view};
 use cairn_core::SE2;
 use nalgebra::{DMatrix, DVector, Matrix2, Matrix3, SMatrix, Vector2, Vector3};
@@ -265,9 +265,15 @@ impl EkfSlam {
 
     /// Moves the pose by the odometry of the last `dt` seconds, its turn
     /// less the bias: with F the robot's Jacobian, P_rr ← F P_rr Fᵀ + Q and
-    /// P_rm ← F P_rm.
+    /// P_rm ← F P_rm. The bias is a state, so the turn is weighed by the
+    /// yaw rate's white noise alone, as in the graph's full optimisation.
     fn predict_motion(&mut self, dt: f64) {
+        let white = self
+            .run
+            .motion
+            .white_heading_variance(self.run.config.yaw_rate_noise);
         let (delta, q) = self.run.motion.take();
+        let q = with_heading_variance(&q, white);
         let pose = self.pose();
         let bias = self.x[BIAS];
         // The bias turns the step by −b·dt, its chord by half that.

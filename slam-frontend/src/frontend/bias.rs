@@ -4,6 +4,7 @@
 //! car was when the scan was measured, and the prior on the first pose.
 
 use super::edges::OdometryEdge;
+use crate::motion::with_heading_variance;
 use cairn_core::edge::Linearized;
 use cairn_core::{BinaryEdge, EdgeSE2, EdgeSE2XY, SE2, UnaryEdge, Variable};
 use nalgebra::{Matrix2, Matrix3, Matrix5, SMatrix, SVector, Vector2, Vector3, Vector5};
@@ -70,14 +71,8 @@ impl OdometryBias {
     /// correlation kept), the bias's random walk of `walk` rad/s/√s and
     /// the latency's of [`LATENCY_WALK`].
     pub(super) fn new(o: &OdometryEdge, walk: f64) -> (Self, Matrix5<f64>) {
-        let mut cov: Matrix3<f64> = o.information.try_inverse().unwrap_or_else(Matrix3::zeros);
-        let heading = o.heading_variance.max(1e-12);
-        let scale = (heading / cov[(2, 2)].max(1e-12)).min(1.0).sqrt();
-        for i in 0..2 {
-            cov[(i, 2)] *= scale;
-            cov[(2, i)] *= scale;
-        }
-        cov[(2, 2)] = heading;
+        let cov: Matrix3<f64> = o.information.try_inverse().unwrap_or_else(Matrix3::zeros);
+        let cov = with_heading_variance(&cov, o.heading_variance);
         let info3 = cov.try_inverse().unwrap_or(o.information);
         let mut info = Matrix5::zeros();
         info.fixed_view_mut::<3, 3>(0, 0)

@@ -351,8 +351,9 @@ impl GraphSlam {
         let previous = self.pose;
         // The heading's variance beyond the bias the full optimisation
         // estimates: the yaw rate's white noise and the turns' own error.
-        let white = self.config.yaw_rate_noise.powi(2) * self.motion.step_time2()
-            + self.motion.turn_variance();
+        let white = self
+            .motion
+            .white_heading_variance(self.config.yaw_rate_noise);
         let steps = (white, self.motion.slip_jacobian());
         let (delta, delta_cov) = self.motion.take();
         let (pred, pred_cov) = compose_with_cov(&previous, &self.pose_cov, &delta, &delta_cov);

@@ -331,6 +331,13 @@ impl Odometry {
         self.step_time2
     }
 
+    /// Variance of the heading change since the last [`Odometry::take`]
+    /// from a yaw rate's white noise of `yaw_rate_noise` (rad/s) and the
+    /// turns' own error, without the bias (read it before taking).
+    pub fn white_heading_variance(&self, yaw_rate_noise: f64) -> f64 {
+        yaw_rate_noise * yaw_rate_noise * self.step_time2 + self.turn_variance
+    }
+
     /// Heading variance from the turns since the last [`Odometry::take`]
     /// (the velocity model's `turn_sigma`; read it before taking): an error
     /// of each turn, not of a bias the full optimisation estimates.
@@ -395,6 +402,23 @@ pub fn compose_jacobians(pose: &SE2, delta: &SE2) -> (Matrix3<f64>, Matrix3<f64>
 }
 
 /// The 90° rotation: d R(θ)/dθ = skew · R(θ).
+/// `cov` of a motion with its heading variance replaced by `heading`
+/// and the position–heading covariance scaled to match (never widened):
+/// where an estimator carries the yaw-rate bias as a state, the
+/// integrated heading is weighed by the yaw rate's white noise alone,
+/// not by a σ (and the correlated steps' inflation) that covers the bias.
+pub fn with_heading_variance(cov: &Matrix3<f64>, heading: f64) -> Matrix3<f64> {
+    let heading = heading.max(1e-12);
+    let scale = (heading / cov[(2, 2)].max(1e-12)).min(1.0).sqrt();
+    let mut out = *cov;
+    for i in 0..2 {
+        out[(i, 2)] *= scale;
+        out[(2, i)] *= scale;
+    }
+    out[(2, 2)] = heading;
+    out
+}
+
 fn skew() -> Matrix2<f64> {
     Matrix2::new(0.0, -1.0, 1.0, 0.0)
 }
