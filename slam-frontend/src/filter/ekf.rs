@@ -11,7 +11,7 @@ use crate::frontend::association::{Correlation, Pair};
 use crate::frontend::{FrontEndConfig, Mode, Timing, beside};
 use crate::log::{Detection, Record};
 use crate::map::Cone;
-use crate::motion::{compose_jacobians, with_heading_variance};
+use crate::motion::{compose_jacobians, with_heading_variance, without_bias};
 use crate::sighting::{Sighting, in_view};
 use cairn_core::SE2;
 use nalgebra::{DMatrix, DVector, Matrix2, Matrix3, SMatrix, Vector2, Vector3};
@@ -276,11 +276,9 @@ impl EkfSlam {
         let q = with_heading_variance(&q, white);
         let pose = self.pose();
         let bias = self.x[BIAS];
-        // The bias turns the step by −b·dt, its chord by half that.
-        let chord = SE2::new(0.0, 0.0, -0.5 * bias * dt).rotation() * delta.t;
-        let delta = SE2::new(chord.x, chord.y, delta.theta - bias * dt);
+        let (delta, by_bias) = without_bias(&delta, bias, dt);
         let (j_pose, j_delta) = compose_jacobians(&pose, &delta);
-        let by_bias = j_delta * Vector3::new(0.5 * dt * chord.y, -0.5 * dt * chord.x, -dt);
+        let by_bias = j_delta * by_bias;
         let mut f = RobotMatrix::identity();
         f.fixed_view_mut::<3, 3>(0, 0).copy_from(&j_pose);
         f.fixed_view_mut::<3, 1>(0, BIAS).copy_from(&by_bias);

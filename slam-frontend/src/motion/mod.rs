@@ -2,7 +2,7 @@
 //! into the relative motion since the last scan and its covariance.
 
 use cairn_core::SE2;
-use nalgebra::{Matrix2, Matrix3, SMatrix, Vector2};
+use nalgebra::{Matrix2, Matrix3, SMatrix, Vector2, Vector3};
 use std::collections::VecDeque;
 
 /// How odometry turns into a yaw rate.
@@ -402,6 +402,17 @@ pub fn compose_jacobians(pose: &SE2, delta: &SE2) -> (Matrix3<f64>, Matrix3<f64>
 }
 
 /// The 90° rotation: d R(θ)/dθ = skew · R(θ).
+/// The motion `delta` of `dt` seconds with a yaw-rate bias of `bias`
+/// (rad/s) taken out of its turn, and its derivative with respect to the
+/// bias in `delta`'s frame: the turn less `bias·dt`, the chord turned by
+/// half that.
+pub fn without_bias(delta: &SE2, bias: f64, dt: f64) -> (SE2, Vector3<f64>) {
+    let chord = SE2::new(0.0, 0.0, -0.5 * bias * dt).rotation() * delta.t;
+    let corrected = SE2::new(chord.x, chord.y, delta.theta - bias * dt);
+    let by_bias = Vector3::new(0.5 * dt * chord.y, -0.5 * dt * chord.x, -dt);
+    (corrected, by_bias)
+}
+
 /// `cov` of a motion with its heading variance replaced by `heading`
 /// and the position–heading covariance scaled to match (never widened):
 /// where an estimator carries the yaw-rate bias as a state, the
