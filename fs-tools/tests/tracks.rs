@@ -323,12 +323,24 @@ fn fastslam_closes_its_loop_where_the_start_straight_repeats_itself() {
         EstimatorKind::FastSlam2,
     )
     .expect("the preset has a shipped config");
-    let mut builder = EstimatorBuilder::new(EstimatorKind::FastSlam2, config);
-    builder.particles = 30;
-    let (slam, report) = run_estimator(&sim, &builder);
-    println!("{report:?}");
-    assert_eq!(slam.loop_closures(), 1);
-    // Regression guards: today 95.5% and 0.49 m.
-    assert!(report.association_accuracy > 0.9, "{report:?}");
-    assert!(report.ate < 1.0, "{report:?}");
+    // FastSLAM samples, so one sampler seed is one draw: with 30 particles
+    // the loop closed with 7 of sampler seeds 0–7 (not seed 0). Four draws
+    // must close at least three times. The bounds on the runs that close
+    // are regression guards (seeds 1–3: 95.8–96.0%, ATE 1.18–1.63 m;
+    // before FastSLAM 2.0 sampled its whole proposal, seed 0 closed with
+    // 95.5% and 0.49 m).
+    let mut closed = 0;
+    for seed in 0..4 {
+        let mut builder = EstimatorBuilder::new(EstimatorKind::FastSlam2, config.clone());
+        builder.particles = 30;
+        builder.seed = seed;
+        let (slam, report) = run_estimator(&sim, &builder);
+        println!("seed {seed}: {report:?}");
+        if slam.loop_closures() == 1 {
+            closed += 1;
+            assert!(report.association_accuracy > 0.9, "{report:?}");
+            assert!(report.ate < 2.0, "{report:?}");
+        }
+    }
+    assert!(closed >= 3, "the loop closed in {closed} of 4 draws");
 }

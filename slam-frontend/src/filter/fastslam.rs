@@ -21,6 +21,9 @@ use rand_distr::{Distribution, StandardNormal};
 use std::rc::Rc;
 use std::time::Instant;
 
+#[cfg(test)]
+mod tests;
+
 /// FastSLAM 1.0 or 2.0.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum Version {
@@ -199,17 +202,17 @@ impl FastSlam {
             .iter()
             .map(|d| measurement(&self.run.config, d))
             .collect();
-        let chol = (q + Matrix3::identity() * 1e-12).cholesky();
+        // The motion's noise is L·n for a standard normal n.
+        let q_l = (q + Matrix3::identity() * 1e-12)
+            .cholesky()
+            .map_or(Matrix3::zeros(), |c| c.l());
         let mut tracker_choices = Vec::new();
 
         let best_before = self.best_index();
         for k in 0..self.particles.len() {
-            let noise = match &chol {
-                Some(c) => c.l() * self.normal3(),
-                None => Vector3::zeros(),
-            };
+            let noise = self.normal3();
             let choices =
-                self.update_particle(k, scan, t, cones, &measurements, &delta, &q, &noise);
+                self.update_particle(k, scan, t, cones, &measurements, &delta, (&q, &q_l), &noise);
             if k == best_before {
                 tracker_choices = choices;
             }
@@ -303,8 +306,9 @@ impl FastSlam {
         Vector3::from_fn(|_, _| StandardNormal.sample(&mut self.rng))
     }
 
-    /// Moves, associates, weighs and updates particle `k`; returns what each
-    /// detection became.
+    /// Moves, associates, weighs and updates particle `k` by the motion
+    /// `delta` (covariance `q` = `q_l`·`q_l`ᵀ) with the standard-normal
+    /// `noise`; returns what each detection became.
     #[allow(clippy::too_many_arguments)]
     fn update_particle(
         &mut self,
@@ -314,7 +318,7 @@ impl FastSlam {
         cones: &[Detection],
         measurements: &[(Vector2<f64>, Matrix2<f64>)],
         delta: &SE2,
-        q: &Matrix3<f64>,
+        (q, q_l): (&Matrix3<f64>, &Matrix3<f64>),
         noise: &Vector3<f64>,
     ) -> Vec<Option<usize>> {
         let config = &self.run.config;
@@ -330,7 +334,7 @@ impl FastSlam {
         // motion's uncertainty.
         let (at, at_cov) = match settings.version {
             Version::One => (
-                SE2::from_vector(&(predicted.to_vector() + j_delta * noise)),
+                SE2::from_vector(&(predicted.to_vector() + j_delta * (q_l * noise))),
                 Matrix3::zeros(),
             ),
             Version::Two => (predicted, motion_cov),
