@@ -367,17 +367,18 @@ fn comparison(md: &mut String, runs: &[Run]) {
          resampling, so the path random-walks along the track: the corridor test in \
          `fs-tools/tests/estimators.rs` measures 0.54 m of map RMSE after 100 m \
          straight, where the other estimators stay at 0.05–0.09 m.\n\
-         - FastSLAM 2.0's proposal folds the scan into the pose sample, which cures that on \
-         the corridor (0.05 m), but on a loop the proposal is so narrow that the particles hardly differ (see the particle \
-         table): the filter behaves like one pose EKF with independent landmark EKFs, and \
-         the drift of the first lap has no cross-covariance to be undone by at the loop \
-         closure. Place recognition at the start (the same scan-to-map alignment the graph \
-         uses) is what lets it close the loop at all.\n\
+         - FastSLAM 2.0's proposal folds the scan into the pose it samples, which narrows \
+         that walk but cannot stop it (the corridor test: 0.45 m). Each particle's map is \
+         conditioned on its own path, so the drift of the first lap is undone at the loop \
+         closure only by choosing a particle that drifted less, and with few particles their \
+         paths share an ancestor a few seconds back (see the particle table). Place \
+         recognition at the start (the same scan-to-map alignment the graph uses) is what \
+         lets it close the loop at all.\n\
          - EKF-SLAM keeps the cross-covariances, so closing the loop corrects the whole map; \
          its gates must use them too. Its state carries the gyro's bias beside the pose, \
-         the heading taking the yaw rate's white noise alone (when it was added, on the \
-         study's runs of the time, that took its `standard` map RMSE from 0.273 m to 0.207 m \
-         and its phantoms from 4.8 to none). What is left is mostly a turn of the map about \
+         so each step's turn is weighed by the yaw rate's white noise alone, as in the \
+         graph's full optimisation, and its map covariance comes out close to the graph's \
+         marginals. What is left is mostly a turn of the map about \
          the start: aligned, its `standard` maps are {:.3} m off against {:.3} m as they \
          stand. Gating with the pose and landmark covariances alone \
          cost it 12 points of association accuracy (87.6% against 99.4% on \
