@@ -449,6 +449,44 @@ fn ekf_slam_is_as_certain_of_its_map_as_the_graph_and_as_right() {
 }
 
 #[test]
+fn ekf_slam_matches_again_at_the_end_what_its_gates_turned_away() {
+    // A 99% gate turns away about 1% of true detections while driving; at
+    // the end of the run they are matched again from the final map.
+    let (track, course) = random_track(2, &TrackRules::default());
+    let sim = simulate(&track, &course, &SimConfig::default());
+    let config = assumed_config(
+        "standard",
+        AssociationMethod::MaximumLikelihood,
+        EstimatorKind::Ekf,
+    )
+    .unwrap();
+    let (_, report) = run_estimator(
+        &sim,
+        &EstimatorBuilder::new(EstimatorKind::Ekf, config.clone()),
+    );
+    let real_time = report.association_accuracy_real_time.unwrap();
+    println!(
+        "real time {real_time}, at the end {}",
+        report.association_accuracy
+    );
+    assert!(real_time < 0.995, "real time {real_time}");
+    assert!(
+        report.association_accuracy > real_time + 0.005,
+        "{report:?}"
+    );
+    assert_eq!(report.phantom, 0, "{report:?}");
+    let off = FrontEndConfig {
+        hindsight: false,
+        ..config
+    };
+    let (_, report) = run_estimator(&sim, &EstimatorBuilder::new(EstimatorKind::Ekf, off));
+    assert_eq!(
+        Some(report.association_accuracy),
+        report.association_accuracy_real_time
+    );
+}
+
+#[test]
 fn ekf_slam_refines_its_own_map_after_the_loop_closes() {
     // Localising on the map it built, EKF-SLAM still updates the landmarks
     // jointly with the pose: the second lap's sightings correct what the

@@ -47,7 +47,8 @@ pub trait Estimator {
     /// Mapping or localising.
     fn mode(&self) -> Mode;
     /// Ends the run after the last record (the graph front end's final
-    /// optimisation, [`GraphSlam::finish`]); the filters have nothing to do.
+    /// optimisation, [`GraphSlam::finish`]; EKF-SLAM's matching again,
+    /// [`EkfSlam::finish`]).
     fn finish(&mut self) -> Result<(), OptimiseError> {
         Ok(())
     }
@@ -236,6 +237,10 @@ impl Estimator for EkfSlam {
     }
     fn associations(&self) -> Vec<Association> {
         EkfSlam::associations(self)
+    }
+    fn finish(&mut self) -> Result<(), OptimiseError> {
+        EkfSlam::finish(self);
+        Ok(())
     }
     fn timing(&self) -> &Timing {
         EkfSlam::timing(self)

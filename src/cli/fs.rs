@@ -128,9 +128,10 @@ pub struct SlamArgs {
     /// Keep mapping after the loop closes instead of localising on the map.
     #[arg(long)]
     keep_mapping: bool,
-    /// Do not match every detection again at the end of the run (along its
-    /// tracker id's chain with tracking association, alone with the other
-    /// methods), which takes about half of the end-of-run time; the
+    /// Do not match detections again at the end of the run (the graph: every
+    /// detection, along its tracker id's chain with tracking association,
+    /// alone with the other methods, about half of the end-of-run time;
+    /// EKF-SLAM: those left unmatched, against its final map); the
     /// associations written are then those made in real time.
     #[arg(long)]
     no_hindsight: bool,

@@ -17,6 +17,7 @@ use cairn_core::SE2;
 use nalgebra::{DMatrix, DVector, Matrix2, Matrix3, SMatrix, Vector2, Vector3};
 use std::time::Instant;
 
+mod rematch;
 mod storage;
 #[cfg(test)]
 mod tests;
@@ -63,7 +64,12 @@ pub struct EkfSlam {
     /// Landmark owning each slot, by (slot − 4) / 2.
     owners: Vec<usize>,
     poses: Vec<StampedPose>,
+    /// The pose's covariance after each scan.
+    pose_covs: Vec<Matrix3<f64>>,
     detections: Vec<(usize, usize, Option<usize>)>,
+    /// Each detection's (range, bearing) and covariance, in the order of
+    /// `detections`.
+    measured: Vec<(Vector2<f64>, Matrix2<f64>)>,
     /// P Hᵀ of the current update (capacity × 2).
     pht: DMatrix<f64>,
     /// The downdates not yet applied to `p`: the covariance is
@@ -98,7 +104,9 @@ impl EkfSlam {
             landmarks: Vec::new(),
             owners: Vec::new(),
             poses: Vec::new(),
+            pose_covs: Vec::new(),
             detections: Vec::new(),
+            measured: Vec::new(),
             pht: DMatrix::zeros(capacity, 2),
             pending: DMatrix::zeros(capacity, PENDING),
             rank: 0,
@@ -193,10 +201,13 @@ impl EkfSlam {
                 // Not placed on the given map yet: nothing is associated.
                 self.detections
                     .extend((0..cones.len()).map(|i| (scan, i, None)));
+                self.measured
+                    .extend(cones.iter().map(|d| measurement(&self.run.config, d)));
                 self.poses.push(StampedPose {
                     t,
                     pose: self.pose(),
                 });
+                self.pose_covs.push(self.pose_cov());
                 return;
             }
             Ok(Some(pose)) => {
@@ -236,6 +247,7 @@ impl EkfSlam {
                 Choice::Reject => None,
             };
             self.detections.push((scan, i, landmark));
+            self.measured.push((*z, *r));
             let Some(l) = landmark else { continue };
             self.run.remember(scan, i, d, l);
             if l < associated.len() {
@@ -261,6 +273,7 @@ impl EkfSlam {
             }
         }
         self.poses.push(StampedPose { t, pose });
+        self.pose_covs.push(self.pose_cov());
     }
 
     /// Moves the pose by the odometry of the last `dt` seconds, its turn
