@@ -121,7 +121,9 @@ pub struct FrontEndConfig {
     /// Match every detection again at the end of the run, from the
     /// optimised poses and map: along its tracker id's chain of sightings
     /// with tracking association, scan by scan with the other methods
-    /// ([`GraphSlam::finish`](super::GraphSlam::finish)).
+    /// ([`GraphSlam::finish`](super::GraphSlam::finish)). EKF-SLAM matches
+    /// again those its gates left unmatched
+    /// ([`EkfSlam::finish`](crate::filter::ekf::EkfSlam::finish)).
     pub hindsight: bool,
     /// Rounds of that matching, each followed by an optimisation, until a
     /// round changes no match (1 to 20). Where landmarks stand closer than
