@@ -39,8 +39,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
             ..SimConfig::default()
         },
     );
-    let config = assumed_config(preset.name, method, EstimatorKind::Graph)
-        .expect("the preset has a shipped config");
+    let config = assumed_config(preset.name, method, EstimatorKind::Graph)?;
     let (slam, report) = cairn_fs_tools::run::run_and_score(&sim, config);
     println!(
         "{} ({:.0} m): closures {} mode {:?}\n{}",
