@@ -3,6 +3,7 @@
 
 use super::{EkfSlam, predict};
 use crate::filter::innovation;
+use crate::frontend::association::Pair;
 use nalgebra::{Matrix2, Vector2};
 use std::collections::HashSet;
 
@@ -12,7 +13,8 @@ impl EkfSlam {
     /// the filter later dropped): from the pose the filter had at its scan
     /// (with that pose's covariance) and the final map, to the one
     /// landmark whose χ² is within the gate while every other's is beyond
-    /// the new-landmark gate, and that the scan matched no other way. The
+    /// the new-landmark gate (by [`Pair::new`], without the colours, which
+    /// the filter does not keep), and that the scan matched no other way. The
     /// map itself does not change; the real-time associations are those
     /// before this (`hindsight = false` keeps them).
     pub fn finish(&mut self) {
@@ -47,33 +49,30 @@ impl EkfSlam {
                 continue;
             };
             let (z, r) = &self.measured[k];
-            // The best and second-best χ² over the landmarks in reach.
-            let (mut best, mut second) = ((f64::INFINITY, usize::MAX), f64::INFINITY);
-            for (l, mean, cov) in &mapped {
-                if (mean - at.pose.t).norm_squared() > reach2 {
-                    continue;
-                }
-                let Some(pred) = predict(&at.pose, mean) else {
-                    continue;
-                };
-                let s = pred.h_pose * pose_cov * pred.h_pose.transpose()
-                    + pred.h_landmark * cov * pred.h_landmark.transpose()
-                    + r;
-                let Some(s_inv) = s.try_inverse() else {
-                    continue;
-                };
-                let nu = innovation(z, &pred.z);
-                let chi2 = (nu.transpose() * s_inv * nu)[(0, 0)];
-                if chi2 < best.0 {
-                    second = best.0;
-                    best = (chi2, *l);
-                } else if chi2 < second {
-                    second = chi2;
-                }
-            }
-            let (chi2, l) = best;
-            if chi2 < gate && second > ambiguous && taken.insert((scan, l)) {
-                self.detections[k].2 = Some(l);
+            // The landmarks in reach within the new-landmark gate: one alone.
+            let mut pairs = mapped
+                .iter()
+                .filter(|(_, mean, _)| (mean - at.pose.t).norm_squared() <= reach2)
+                .filter_map(|(l, mean, cov)| {
+                    let pred = predict(&at.pose, mean)?;
+                    let s_landmark = pred.h_landmark * cov * pred.h_landmark.transpose();
+                    let nu = innovation(z, &pred.z);
+                    Pair::new(
+                        *l,
+                        nu,
+                        pred.h_pose,
+                        r,
+                        &s_landmark,
+                        pose_cov,
+                        0.0,
+                        ambiguous,
+                    )
+                });
+            if let (Some(only), None) = (pairs.next(), pairs.next())
+                && only.d2 < gate
+                && taken.insert((scan, only.landmark))
+            {
+                self.detections[k].2 = Some(only.landmark);
             }
         }
     }
