@@ -156,9 +156,10 @@ impl GraphSlam {
     /// seen in half the scans survives the misses; on eufs_rand that kept
     /// 32 of its 134 clutter objects per run. The final poses say in which
     /// scans each landmark was in view, with a margin for their errors
-    /// ([`ViewMargin::FINAL`](crate::sighting::ViewMargin::FINAL)) rather than the mapping's. Judged once: judged after
-    /// every scan, a cone misread a few times early in the second lap was
-    /// dropped (epfl_track_3).
+    /// ([`ViewMargin::FINAL`](crate::sighting::ViewMargin::FINAL)) rather
+    /// than the mapping's. Judged once: judged after every scan, a cone
+    /// misread a few times early in the second lap was dropped
+    /// (epfl_track_3).
     pub(super) fn drop_clutter(&mut self) {
         let mut seen_from: Vec<Vec<usize>> = vec![Vec::new(); self.landmarks.len()];
         for o in &self.observations {

@@ -10,7 +10,8 @@ use nalgebra::{Matrix2, Matrix3, SMatrix, Vector2};
 
 impl EkfSlam {
     /// Back in the start area with a drift the gates do not cover: where
-    /// place recognition puts the car ([`Run::recognise`](crate::filter::Run::recognise)) is fused as a
+    /// place recognition puts the car
+    /// ([`Run::recognise`](crate::filter::Run::recognise)) is fused as a
     /// measurement of the pose, so the pose and, through their
     /// correlations, the landmarks move towards it, and the scan's
     /// detections can then match the start's landmarks and close the loop.
