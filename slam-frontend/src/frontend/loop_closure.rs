@@ -8,22 +8,10 @@ use crate::color::Color;
 use crate::log::Detection;
 use crate::sighting::{START_AREA, View, near_start};
 use cairn_core::SE2;
-use cairn_core::se2::normalize_angle;
 use nalgebra::{Matrix2, Matrix3, Vector2};
 
 /// How far back the landmarks of [`GraphSlam::recent_submap`] were made (m).
 const RECENT: f64 = 40.0;
-
-/// Scans that must find the same correction beyond half a cone spacing,
-/// without the start line to anchor it, before it is taken. With 5, the
-/// start area seen from afar on eufs_hairpins_increasing_difficulty
-/// without its big orange cones fitted 5 m off in 5 scans (4 runs of 5).
-const CONFIRM_SCANS: usize = 10;
-
-/// Corrections of the pose closer than this (m, rad) are the same: the
-/// drift changes little from scan to scan, and a fit one spacing off is
-/// metres away.
-const SAME_CORRECTION: (f64, f64) = (1.0, 0.1);
 
 /// A scan kept to be matched again later (near the start until the loop
 /// closes, every scan until the end of the run, scans waiting for
@@ -170,7 +158,7 @@ impl GraphSlam {
         let Some(found) = found else {
             return false;
         };
-        let Some(aligned) = self.confirm(found) else {
+        let Some(aligned) = self.place_votes.confirm(&self.pose, found) else {
             return false;
         };
         for (i, d) in cones.iter().enumerate() {
@@ -204,42 +192,6 @@ impl GraphSlam {
             }
         }
         true
-    }
-
-    /// The pose of a recognised place once it may be taken. Each scan's
-    /// clear best fit votes for a correction of the pose; a correction
-    /// beyond half a spacing is taken with [`CONFIRM_SCANS`] votes and more
-    /// than twice those of any other. An anchored fit is taken at once
-    /// unless other corrections have votes: then the drift may exceed half
-    /// a spacing, and a fit one spacing off passes for anchored.
-    fn confirm(&mut self, found: align::Recognised) -> Option<SE2> {
-        let pose = found.pose();
-        let correction = pose.compose(&self.pose.inverse());
-        let same = |c: &SE2| {
-            (c.t - correction.t).norm() < SAME_CORRECTION.0
-                && normalize_angle(c.theta - correction.theta).abs() < SAME_CORRECTION.1
-        };
-        let others = self
-            .place_votes
-            .iter()
-            .filter(|v| !same(&v.0))
-            .map(|v| v.1)
-            .max()
-            .unwrap_or(0);
-        if found.anchored().is_some() && others == 0 {
-            return Some(pose);
-        }
-        let votes = match self.place_votes.iter_mut().find(|v| same(&v.0)) {
-            Some(v) => {
-                *v = (correction, v.1 + 1);
-                v.1
-            }
-            None => {
-                self.place_votes.push((correction, 1));
-                1
-            }
-        };
-        (votes >= CONFIRM_SCANS && votes > 2 * others).then_some(pose)
     }
 
     /// The landmarks mapped in the last [`RECENT`] metres of this lap near

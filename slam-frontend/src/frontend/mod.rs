@@ -19,6 +19,7 @@ mod latency;
 mod loop_closure;
 mod noise;
 mod optimise;
+mod place_votes;
 mod pose;
 mod relocalise;
 mod remap;
@@ -122,7 +123,7 @@ pub struct GraphSlam {
     closed_at: Option<f64>,
     /// Corrections of the pose that place recognition found near the start,
     /// and in how many scans each was the clear best.
-    place_votes: Vec<(SE2, usize)>,
+    place_votes: place_votes::PlaceVotes,
     calibration: Calibration,
     timing: Timing,
     window: window::Window,
@@ -180,7 +181,7 @@ impl GraphSlam {
             placement: align::Placement::default(),
             loop_closures: 0,
             closed_at: None,
-            place_votes: Vec::new(),
+            place_votes: place_votes::PlaceVotes::default(),
             calibration,
             timing: Timing::default(),
             window,
