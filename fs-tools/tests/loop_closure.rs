@@ -87,22 +87,8 @@ fn a_straight_beside_the_start_does_not_end_the_lap() {
     };
     let track = Track::load(&path).expect("the shared track reads");
     let course = Course::from_track(&track).expect("a closed course");
-    let sim = simulate(
-        &track,
-        &course,
-        &SimConfig {
-            preset: Preset::realistic(),
-            seed: 100,
-            ..SimConfig::default()
-        },
-    );
-    let config = assumed_config(
-        "standard",
-        AssociationMethod::MaximumLikelihood,
-        EstimatorKind::Graph,
-    )
-    .expect("the preset has a shipped config");
-    let mut slam = GraphSlam::new(config);
+    let sim = common::simulate_preset(&track, &course, Preset::realistic(), 100);
+    let mut slam = GraphSlam::new(common::standard_graph_config());
     let start = sim.truth[0].pose;
     let mut closures = 0;
     for record in &sim.log {
@@ -144,22 +130,8 @@ fn one_scan_alone_does_not_close_the_loop() {
     preset.sensor.range_sigma *= 2.0;
     preset.sensor.range_sigma_relative *= 2.0;
     preset.sensor.bearing_sigma *= 2.0;
-    let sim = simulate(
-        &track,
-        &course,
-        &SimConfig {
-            preset,
-            seed: 104,
-            ..SimConfig::default()
-        },
-    );
-    let config = assumed_config(
-        "standard",
-        AssociationMethod::MaximumLikelihood,
-        EstimatorKind::Graph,
-    )
-    .expect("the preset has a shipped config");
-    let (slam, report) = run_and_score(&sim, config);
+    let sim = common::simulate_preset(&track, &course, preset, 104);
+    let (slam, report) = run_and_score(&sim, common::standard_graph_config());
     println!("{report:?}");
     assert_eq!(slam.loop_closures(), 1);
     // Measured: 99.83%, no phantoms, map RMSE 0.205 m.

@@ -6,17 +6,14 @@
 
 mod common;
 
-use cairn_fs_tools::configs::assumed_config;
 use cairn_fs_tools::course::{Course, start_on_line};
 use cairn_fs_tools::eval::Report;
 use cairn_fs_tools::run::run_and_score;
-use cairn_fs_tools::sim::{SimConfig, simulate};
+use cairn_fs_tools::sim::Preset;
 use cairn_fs_tools::track::Track;
 use cairn_fs_tools::trackgen::{TrackRules, random_track};
 use cairn_slam::Color;
-use cairn_slam::estimator::EstimatorKind;
 use cairn_slam::frontend::GraphSlam;
-use cairn_slam::frontend::association::AssociationMethod;
 
 /// A `standard` log of `track` changed by `change`, mapped by the graph
 /// told `configs/standard.toml`.
@@ -26,21 +23,8 @@ fn run_on(
     change: impl FnOnce(&mut Track, &mut Course),
 ) -> (GraphSlam, Report) {
     change(&mut track, &mut course);
-    let sim = simulate(
-        &track,
-        &course,
-        &SimConfig {
-            seed,
-            ..SimConfig::default()
-        },
-    );
-    let config = assumed_config(
-        "standard",
-        AssociationMethod::MaximumLikelihood,
-        EstimatorKind::Graph,
-    )
-    .expect("the preset has a shipped config");
-    run_and_score(&sim, config)
+    let sim = common::simulate_preset(&track, &course, Preset::standard(), seed);
+    run_and_score(&sim, common::standard_graph_config())
 }
 
 /// Takes the start line's big orange cones off `track`.

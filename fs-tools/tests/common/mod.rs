@@ -3,9 +3,13 @@
 
 pub mod shared;
 
+use cairn_fs_tools::configs::assumed_config;
 use cairn_fs_tools::course::Course;
-use cairn_fs_tools::sim::{SimConfig, Simulation, simulate};
+use cairn_fs_tools::sim::{Preset, SimConfig, Simulation, simulate};
 use cairn_fs_tools::track::Track;
+use cairn_slam::estimator::EstimatorKind;
+use cairn_slam::frontend::FrontEndConfig;
+use cairn_slam::frontend::association::AssociationMethod;
 
 /// A run of the default simulation (two laps, `standard`) of `track` with
 /// noise `seed`.
@@ -18,4 +22,28 @@ pub fn simulate_seed(track: &Track, course: &Course, seed: u64) -> Simulation {
             ..SimConfig::default()
         },
     )
+}
+
+/// A run of `preset` (two laps) of `track` with noise `seed`.
+pub fn simulate_preset(track: &Track, course: &Course, preset: Preset, seed: u64) -> Simulation {
+    simulate(
+        track,
+        course,
+        &SimConfig {
+            preset,
+            seed,
+            ..SimConfig::default()
+        },
+    )
+}
+
+/// What the graph front end is told of a `standard` log: the shipped
+/// `configs/standard.toml`, maximum-likelihood association.
+pub fn standard_graph_config() -> FrontEndConfig {
+    assumed_config(
+        "standard",
+        AssociationMethod::MaximumLikelihood,
+        EstimatorKind::Graph,
+    )
+    .expect("the preset has a shipped config")
 }
