@@ -121,8 +121,8 @@ pub struct GraphSlam {
     loop_closures: usize,
     /// Distance driven at the last loop closure.
     closed_at: Option<f64>,
-    /// Corrections of the pose that place recognition found near the start,
-    /// and in how many scans each was the clear best.
+    /// The scans' votes for the corrections of the pose that place
+    /// recognition found near the start.
     place_votes: place_votes::PlaceVotes,
     calibration: Calibration,
     timing: Timing,

@@ -17,8 +17,8 @@ const CONFIRM_SCANS: usize = 10;
 /// noisier than assumed: on epfl_fsds_competition_1_cones with the noise 2×
 /// the assumed (seed 104) the graph's first anchored fit turned the car
 /// 0.16 rad, 0.1 rad past the truth, and the second lap mapped beside the
-/// first (49% association). The next scans' fits disagreed with it and,
-/// after two more, agreed with each other on the right correction (99.8%).
+/// first (49% association). The scans after it agreed with each other on
+/// the right correction (99.8%).
 const ANCHORED_SCANS: usize = 2;
 
 /// Corrections that put the car closer than this (m, rad) are the same:
