@@ -10,6 +10,7 @@ mod bias_walk;
 mod calibration;
 mod candidates;
 mod config;
+mod dispersion;
 mod edges;
 mod fits;
 pub mod grid;
@@ -150,6 +151,9 @@ pub struct GraphSlam {
     /// The detector's noise as configured, and as learned from the matches.
     assumed_noise: [f64; 3],
     noise: noise::NoiseLearner,
+    /// How much wider the innovations run than assumed: JCBB's joint test
+    /// is widened by it.
+    innovation_scale: dispersion::InnovationScale,
 }
 
 impl GraphSlam {
@@ -196,6 +200,7 @@ impl GraphSlam {
             drift: (SE2::identity(), Matrix3::zeros()),
             assumed_noise,
             noise: noise::NoiseLearner::new(),
+            innovation_scale: dispersion::InnovationScale::new(),
         }
     }
 
@@ -381,7 +386,9 @@ impl GraphSlam {
                     .map(|&l| self.resolve(l))
             })
             .collect();
-        let joint_gate = |pairs: usize| chi2_99(2 * pairs);
+        self.innovation_scale.observe(&nearest);
+        let scale = self.innovation_scale.scale();
+        let joint_gate = |pairs: usize| scale * chi2_99(2 * pairs);
         let assigned = associate(
             self.config.association,
             &candidates,
