@@ -322,7 +322,7 @@ impl EkfSlam {
 
     /// The association of every detection of the scan.
     fn choose(
-        &self,
+        &mut self,
         scan: usize,
         cones: &[Detection],
         measurements: &[(Vector2<f64>, Matrix2<f64>)],
@@ -350,6 +350,7 @@ impl EkfSlam {
             cones,
             live,
         );
+        self.run.spread(&nearest);
         let tracked = self
             .run
             .tracked(cones, |l| self.landmarks[l].slot.is_some());

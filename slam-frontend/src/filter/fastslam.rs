@@ -209,14 +209,18 @@ impl FastSlam {
         let mut tracker_choices = Vec::new();
 
         let best_before = self.best_index();
+        let mut spread = Vec::new();
         for k in 0..self.particles.len() {
             let noise = self.normal3();
-            let choices =
+            let (choices, nearest) =
                 self.update_particle(k, scan, t, cones, &measurements, &delta, (&q, &q_l), &noise);
             if k == best_before {
                 tracker_choices = choices;
+                spread = nearest;
             }
         }
+        // Every particle of a scan is judged at the same spread.
+        self.run.spread(&spread);
         // The tracker follows the particle that was best before the scan.
         for (i, c) in tracker_choices.iter().enumerate() {
             if let Some(l) = c {
@@ -308,7 +312,8 @@ impl FastSlam {
 
     /// Moves, associates, weighs and updates particle `k` by the motion
     /// `delta` (covariance `q` = `q_l`·`q_l`ᵀ) with the standard-normal
-    /// `noise`; returns what each detection became.
+    /// `noise`; returns what each detection became, and the χ² of each
+    /// detection's nearest landmark.
     #[allow(clippy::too_many_arguments)]
     fn update_particle(
         &mut self,
@@ -320,7 +325,7 @@ impl FastSlam {
         delta: &SE2,
         (q, q_l): (&Matrix3<f64>, &Matrix3<f64>),
         noise: &Vector3<f64>,
-    ) -> Vec<Option<usize>> {
+    ) -> (Vec<Option<usize>>, Vec<f64>) {
         let config = &self.run.config;
         let settings = self.settings;
         let localising = self.run.mode == Mode::Localising;
@@ -464,7 +469,7 @@ impl FastSlam {
         particle.log_weight += log_weight;
         let choices_u32 = out.iter().map(|c| c.map(|l| l as u32)).collect();
         push_step(particle, scan, StampedPose { t, pose }, choices_u32);
-        out
+        (out, nearest)
     }
 
     /// Low-variance resampling when the effective sample size is low.

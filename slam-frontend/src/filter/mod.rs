@@ -13,6 +13,7 @@ use crate::color::Color;
 use crate::files::Association;
 use crate::frontend::align;
 use crate::frontend::association::{Candidates, Correlation, Pair, associate};
+use crate::frontend::dispersion::InnovationScale;
 use crate::frontend::{Beside, FrontEndConfig, Mode, Timing, chi2_99};
 use crate::log::{Detection, Record};
 use crate::map::Cone;
@@ -135,6 +136,10 @@ struct Run {
     /// The pose of the first scan, where a lap ends.
     first_pose: Option<SE2>,
     colors: ColorRate,
+    /// How much wider the innovations run than assumed, and the factor it
+    /// gives JCBB's joint test (as the graph's, [`InnovationScale`]).
+    innovation_scale: InnovationScale,
+    joint_scale: f64,
 }
 
 impl Run {
@@ -157,7 +162,17 @@ impl Run {
             map_given: false,
             placement: align::Placement::default(),
             first_pose: None,
+            innovation_scale: InnovationScale::new(),
+            joint_scale: 1.0,
         }
+    }
+
+    /// Learns from a scan's χ² of each detection's nearest landmark how much
+    /// wider the innovations run than assumed; later scans' joint tests are
+    /// widened by it.
+    fn spread(&mut self, nearest: &[f64]) {
+        self.innovation_scale.observe(nearest);
+        self.joint_scale = self.innovation_scale.scale();
     }
 
     /// Localises on `map` from the first scan, once placed on it.
@@ -308,7 +323,7 @@ impl Run {
             self.config.association,
             candidates,
             tracked,
-            |pairs| chi2_99(2 * pairs),
+            |pairs| self.joint_scale * chi2_99(2 * pairs),
             correlation,
         );
         let mut taken = vec![false; assigned.iter().flatten().max().map_or(0, |&l| l + 1)];

@@ -10,7 +10,7 @@ mod bias_walk;
 mod calibration;
 mod candidates;
 mod config;
-mod dispersion;
+pub(crate) mod dispersion;
 mod edges;
 mod fits;
 pub mod grid;
