@@ -4,6 +4,7 @@
 //! phantom landmarks, latency.
 
 use cairn_core::SE2;
+use cairn_core::se2::normalize_angle;
 use cairn_slam::Color;
 use cairn_slam::Cone;
 use cairn_slam::files::{Association, StampedPose};
@@ -303,16 +304,25 @@ pub fn position_errors(truth: &[StampedPose], estimate: &[StampedPose]) -> Vec<(
 
 /// The true position at time `t`, linearly interpolated.
 fn interpolate(truth: &[StampedPose], t: f64) -> Option<Vector2<f64>> {
+    pose_at(truth, t).map(|p| p.t)
+}
+
+/// The pose at time `t`, interpolated linearly (the heading the short way
+/// round) between the trajectory's poses; `None` outside their times.
+pub fn pose_at(truth: &[StampedPose], t: f64) -> Option<SE2> {
     let i = truth.partition_point(|p| p.t < t);
-    if i == truth.len() {
-        return None;
+    let b = truth.get(i)?;
+    if i == 0 || b.t == t {
+        return (b.t - t < 1e-6).then_some(b.pose);
     }
-    if i == 0 || truth[i].t == t {
-        return (truth[i].t - t < 1e-6).then_some(truth[i].pose.t);
-    }
-    let (a, b) = (&truth[i - 1], &truth[i]);
+    let a = &truth[i - 1];
     let u = (t - a.t) / (b.t - a.t);
-    Some(a.pose.t + (b.pose.t - a.pose.t) * u)
+    let turn = normalize_angle(b.pose.theta - a.pose.theta);
+    Some(SE2::new(
+        a.pose.t.x + u * (b.pose.t.x - a.pose.t.x),
+        a.pose.t.y + u * (b.pose.t.y - a.pose.t.y),
+        a.pose.theta + u * turn,
+    ))
 }
 
 fn rms(errors: impl Iterator<Item = f64>) -> f64 {

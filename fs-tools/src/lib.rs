@@ -7,7 +7,8 @@
 //!   [`configs`]: what the estimators assume about its presets;
 //! - [`eval`], [`matching`], [`placement`], [`run`]: scoring a run against
 //!   the truth, the map matched to it one-to-one (after its best rigid
-//!   placement, where asked);
+//!   placement, where asked); [`oracle`]: the association a matcher could
+//!   reach at best, knowing the true poses, cones and noise;
 //! - [`mrclam`]: an importer of the UTIAS Multi-Robot Cooperative
 //!   Localization and Mapping dataset (range/bearing landmark detections,
 //!   commanded velocities, Vicon ground truth);
@@ -20,6 +21,7 @@ pub mod course;
 pub mod eval;
 pub mod matching;
 pub mod mrclam;
+pub mod oracle;
 pub mod placement;
 pub mod run;
 pub mod sim;

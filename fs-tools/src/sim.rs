@@ -11,6 +11,7 @@ use cairn_slam::files::{Association, StampedPose};
 use cairn_slam::log::Record;
 use cairn_slam::motion::integrate;
 use detector::detect;
+pub(crate) use detector::read_probability;
 use effects::{Noise, integrate_with_sideslip};
 use nalgebra::Vector2;
 use rand::SeedableRng;

@@ -140,14 +140,74 @@ fn misread(color: Color, sensor: &SensorModel, u: f64) -> Color {
     if u < sensor.unknown_color {
         Color::Unknown
     } else if u < sensor.unknown_color + sensor.wrong_color {
-        match color {
-            Color::Blue => Color::Yellow,
-            Color::Yellow => Color::Blue,
-            Color::Orange => Color::BigOrange,
-            Color::BigOrange => Color::Orange,
-            Color::Unknown => Color::Unknown,
-        }
+        mistaken_for(color)
     } else {
         color
+    }
+}
+
+/// The colour a cone of `color` is misread as, when it is not read unknown.
+fn mistaken_for(color: Color) -> Color {
+    match color {
+        Color::Blue => Color::Yellow,
+        Color::Yellow => Color::Blue,
+        Color::Orange => Color::BigOrange,
+        Color::BigOrange => Color::Orange,
+        Color::Unknown => Color::Unknown,
+    }
+}
+
+/// The probability that the detector reports a cone of `color` as
+/// `reported` ([`misread`]'s law).
+pub(crate) fn read_probability(color: Color, reported: Color, sensor: &SensorModel) -> f64 {
+    let (unknown, wrong) = (sensor.unknown_color, sensor.wrong_color);
+    if color == Color::Unknown {
+        return if reported == Color::Unknown { 1.0 } else { 0.0 };
+    }
+    if reported == Color::Unknown {
+        unknown
+    } else if reported == color {
+        1.0 - unknown - wrong
+    } else if reported == mistaken_for(color) {
+        wrong
+    } else {
+        0.0
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::sim::Preset;
+
+    #[test]
+    fn the_read_probabilities_are_the_misreading_frequencies() {
+        let sensor = Preset::hard().sensor;
+        let colors = [
+            Color::Blue,
+            Color::Yellow,
+            Color::Orange,
+            Color::BigOrange,
+            Color::Unknown,
+        ];
+        let draws = 10_000;
+        for color in colors {
+            let mut total = 0.0;
+            for reported in colors {
+                let p = read_probability(color, reported, &sensor);
+                // u on an even grid over [0, 1) reads each colour that often.
+                let seen = (0..draws)
+                    .filter(|k| {
+                        misread(color, &sensor, (*k as f64 + 0.5) / draws as f64) == reported
+                    })
+                    .count();
+                assert!(
+                    (seen as f64 / draws as f64 - p).abs() < 1e-3,
+                    "{color:?} as {reported:?}"
+                );
+                total += p;
+            }
+            assert!((total - 1.0).abs() < 1e-12, "{color:?}: {total}");
+        }
     }
 }
