@@ -95,9 +95,7 @@ mod tests {
     fn ceiling(scale: f64) -> f64 {
         let (track, course) = random_track(3, &TrackRules::default());
         let mut preset = Preset::standard();
-        preset.sensor.range_sigma *= scale;
-        preset.sensor.range_sigma_relative *= scale;
-        preset.sensor.bearing_sigma *= scale;
+        preset.sensor.scale_noise(scale);
         let sensor = preset.sensor.clone();
         let sim = simulate(
             &track,

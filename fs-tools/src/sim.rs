@@ -67,6 +67,16 @@ pub struct SensorModel {
     pub tracker: TrackerModel,
 }
 
+impl SensorModel {
+    /// Multiplies the range σ (both parts) and the bearing σ by `k`: a
+    /// detector `k` times as noisy.
+    pub fn scale_noise(&mut self, k: f64) {
+        self.range_sigma *= k;
+        self.range_sigma_relative *= k;
+        self.bearing_sigma *= k;
+    }
+}
+
 /// The odometry's error model.
 #[derive(Clone, Debug, PartialEq)]
 pub struct OdometryModel {

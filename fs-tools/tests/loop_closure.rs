@@ -127,9 +127,7 @@ fn one_scan_alone_does_not_close_the_loop() {
     let track = Track::load(&path).expect("the shared track reads");
     let course = Course::from_track(&track).expect("a closed course");
     let mut preset = Preset::standard();
-    preset.sensor.range_sigma *= 2.0;
-    preset.sensor.range_sigma_relative *= 2.0;
-    preset.sensor.bearing_sigma *= 2.0;
+    preset.sensor.scale_noise(2.0);
     let sim = common::simulate_preset(&track, &course, preset, 104);
     let (slam, report) = run_and_score(&sim, common::standard_graph_config());
     println!("{report:?}");

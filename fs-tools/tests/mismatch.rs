@@ -46,18 +46,11 @@ fn mismatched_on(
     run_and_score(&sim, config)
 }
 
-/// Multiplies the detector's noise σ by `scale`.
-fn scale_noise(preset: &mut Preset, scale: f64) {
-    preset.sensor.range_sigma *= scale;
-    preset.sensor.range_sigma_relative *= scale;
-    preset.sensor.bearing_sigma *= scale;
-}
-
 /// [`mismatched`] with the detector's noise `scale` times the preset's,
 /// learning it or not.
 fn noisier(scale: f64, learn: bool) -> (GraphSlam, Report) {
     mismatched(
-        |p| scale_noise(p, scale),
+        |p| p.sensor.scale_noise(scale),
         |c| c.learn_detector_noise = learn,
     )
 }
@@ -73,7 +66,7 @@ fn jcbb_matches_a_detector_twice_as_noisy_as_assumed() {
     let (slam, report) = mismatched_on(
         (0, 101),
         AssociationMethod::Jcbb,
-        |p| scale_noise(p, 2.0),
+        |p| p.sensor.scale_noise(2.0),
         |_| {},
     );
     println!("{report:?}");

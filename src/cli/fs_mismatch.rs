@@ -104,11 +104,7 @@ impl Case {
         let mut track = track.clone();
         let mut course = course.clone();
         match self {
-            Case::Noise(k) => {
-                preset.sensor.range_sigma *= k;
-                preset.sensor.range_sigma_relative *= k;
-                preset.sensor.bearing_sigma *= k;
-            }
+            Case::Noise(k) => preset.sensor.scale_noise(k),
             Case::NoiseLearned => return Case::Noise(2.0).log_of(&track, &course),
             Case::StudentT => preset.sensor.noise_dof = Some(3.0),
             Case::BiasWalk | Case::BiasWalkTold => preset.odometry.yaw_rate_bias_walk = 5e-4,

@@ -57,9 +57,7 @@ impl SimEffects {
                     "--noise-scale must be above 0 and at most 100, got {scale}"
                 )));
             }
-            sensor.range_sigma *= scale;
-            sensor.range_sigma_relative *= scale;
-            sensor.bearing_sigma *= scale;
+            sensor.scale_noise(scale);
         }
         if self.noise_dof.is_some() {
             sensor.noise_dof = self.noise_dof;
