@@ -3,7 +3,10 @@
 //! the true cones and the detector's true noise. Where two cones stand
 //! closer than the noise separates (the big orange pairs 0.28 m apart at the
 //! start line), even this matcher swaps them, so an estimator's accuracy is
-//! read against it rather than against 100%.
+//! read against it rather than against 100%. It is a reference, not a
+//! strict bound: a matcher with tracker ids can pass it, and so, by a
+//! little, can one that weighs the scans differently, since the most likely
+//! assignment of a scan is not the one with the most detections right.
 
 use crate::eval::pose_at;
 use crate::matching::assign;
@@ -22,8 +25,8 @@ const REACH: f64 = 3.0;
 /// σ_b = `bearing_sigma`). Each scan's detections are assigned one-to-one
 /// to cones, as many as can be and then the smallest summed χ² (Gaussian,
 /// whatever tails the noise has) with −2 ln of the chance of each colour
-/// read (the simulator's misreading law). False positives count as right, as if
-/// known, and sightings the point clustering lost as wrong, as the
+/// read (the simulator's misreading law). False positives count as right,
+/// as if known, and sightings the point clustering lost as wrong, as the
 /// evaluation counts them. Scans measured before or after the truth's
 /// poses are left out. `None` for a log without detections.
 pub fn association_ceiling(sim: &Simulation, sensor: &SensorModel) -> Option<f64> {
@@ -43,8 +46,9 @@ pub fn association_ceiling(sim: &Simulation, sensor: &SensorModel) -> Option<f64
             continue;
         };
         total += detections.len();
-        // Links of each detection of a true cone: (cone, benefit), a pair
-        // worth more than any χ² saving (in millionths of REACH's χ² bound).
+        // Links of each detection of a true cone: (cone, benefit). A pair is
+        // worth more than any saving of χ² (counted in millionths, at most
+        // 10⁵), so that as many detections as can be are paired first.
         let pair = 1_000_000_000_000_i64;
         let links: Vec<Vec<(usize, i64)>> = (0..detections.len())
             .map(|i| {
