@@ -93,7 +93,7 @@ pub fn association_ceiling(sim: &Simulation, sensor: &SensorModel) -> Option<f64
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::sim::{Preset, SimConfig, simulate};
+    use crate::sim::{Preset, simulate_preset};
     use crate::trackgen::{TrackRules, random_track};
 
     fn ceiling(scale: f64) -> f64 {
@@ -101,15 +101,7 @@ mod tests {
         let mut preset = Preset::standard();
         preset.sensor.scale_noise(scale);
         let sensor = preset.sensor.clone();
-        let sim = simulate(
-            &track,
-            &course,
-            &SimConfig {
-                preset,
-                seed: 5,
-                ..SimConfig::default()
-            },
-        );
+        let sim = simulate_preset(&track, &course, preset, 5);
         association_ceiling(&sim, &sensor).expect("detections")
     }
 

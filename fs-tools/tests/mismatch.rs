@@ -6,7 +6,7 @@
 use cairn_fs_tools::configs::assumed_config;
 use cairn_fs_tools::eval::Report;
 use cairn_fs_tools::run::run_and_score;
-use cairn_fs_tools::sim::{Preset, SimConfig, simulate};
+use cairn_fs_tools::sim::{Preset, simulate_preset};
 use cairn_fs_tools::trackgen::{TrackRules, random_track};
 use cairn_slam::estimator::EstimatorKind;
 use cairn_slam::frontend::association::AssociationMethod;
@@ -31,15 +31,7 @@ fn mismatched_on(
     let (track, course) = random_track(track, &TrackRules::default());
     let mut preset = Preset::standard();
     change(&mut preset);
-    let sim = simulate(
-        &track,
-        &course,
-        &SimConfig {
-            preset,
-            seed,
-            ..SimConfig::default()
-        },
-    );
+    let sim = simulate_preset(&track, &course, preset, seed);
     let mut config = assumed_config("standard", method, EstimatorKind::Graph)
         .expect("the preset has a shipped config");
     tell(&mut config);

@@ -10,7 +10,7 @@ use cairn::fs_tools::course::{Course, start_on_line};
 use cairn::fs_tools::eval::Report;
 use cairn::fs_tools::oracle::association_ceiling;
 use cairn::fs_tools::run::run_and_score;
-use cairn::fs_tools::sim::{Preset, SimConfig, simulate};
+use cairn::fs_tools::sim::{Preset, simulate_preset};
 use cairn::fs_tools::track::Track;
 use cairn::slam::Color;
 use cairn::slam::estimator::EstimatorKind;
@@ -186,15 +186,7 @@ fn simulate_and_score(
 ) -> Option<Run> {
     let (track, course, preset) = case.log_of(&tracks[t].0, &tracks[t].1)?;
     let sensor = preset.sensor.clone();
-    let sim = simulate(
-        &track,
-        &course,
-        &SimConfig {
-            preset,
-            seed,
-            ..SimConfig::default()
-        },
-    );
+    let sim = simulate_preset(&track, &course, preset, seed);
     let (slam, report) = run_and_score(&sim, told);
     Some(Run {
         case,

@@ -5,7 +5,7 @@ pub mod shared;
 
 use cairn_fs_tools::configs::assumed_config;
 use cairn_fs_tools::course::Course;
-use cairn_fs_tools::sim::{Preset, SimConfig, Simulation, simulate};
+use cairn_fs_tools::sim::{SimConfig, Simulation, simulate};
 use cairn_fs_tools::track::Track;
 use cairn_slam::estimator::EstimatorKind;
 use cairn_slam::frontend::FrontEndConfig;
@@ -24,18 +24,7 @@ pub fn simulate_seed(track: &Track, course: &Course, seed: u64) -> Simulation {
     )
 }
 
-/// A run of `preset` (two laps) of `track` with noise `seed`.
-pub fn simulate_preset(track: &Track, course: &Course, preset: Preset, seed: u64) -> Simulation {
-    simulate(
-        track,
-        course,
-        &SimConfig {
-            preset,
-            seed,
-            ..SimConfig::default()
-        },
-    )
-}
+pub use cairn_fs_tools::sim::simulate_preset;
 
 /// What the graph front end is told of a `standard` log: the shipped
 /// `configs/standard.toml`, maximum-likelihood association.
