@@ -6,7 +6,7 @@ use cairn_fs_tools::configs::assumed_config;
 use cairn_fs_tools::course::Course;
 use cairn_fs_tools::eval::one_to_one_accuracy;
 use cairn_fs_tools::run::run_and_score;
-use cairn_fs_tools::sim::{Preset, SimConfig, simulate};
+use cairn_fs_tools::sim::{Preset, SimConfig, simulate, simulate_preset};
 use cairn_fs_tools::track::Track;
 use cairn_slam::estimator::EstimatorKind;
 use cairn_slam::frontend::GraphSlam;
@@ -87,7 +87,7 @@ fn a_straight_beside_the_start_does_not_end_the_lap() {
     };
     let track = Track::load(&path).expect("the shared track reads");
     let course = Course::from_track(&track).expect("a closed course");
-    let sim = common::simulate_preset(&track, &course, Preset::realistic(), 100);
+    let sim = simulate_preset(&track, &course, Preset::realistic(), 100);
     let mut slam = GraphSlam::new(common::standard_graph_config());
     let start = sim.truth[0].pose;
     let mut closures = 0;
@@ -128,7 +128,7 @@ fn one_scan_alone_does_not_close_the_loop() {
     let course = Course::from_track(&track).expect("a closed course");
     let mut preset = Preset::standard();
     preset.sensor.scale_noise(2.0);
-    let sim = common::simulate_preset(&track, &course, preset, 104);
+    let sim = simulate_preset(&track, &course, preset, 104);
     let (slam, report) = run_and_score(&sim, common::standard_graph_config());
     println!("{report:?}");
     assert_eq!(slam.loop_closures(), 1);

@@ -9,7 +9,7 @@ mod common;
 use cairn_fs_tools::course::{Course, start_on_line};
 use cairn_fs_tools::eval::Report;
 use cairn_fs_tools::run::run_and_score;
-use cairn_fs_tools::sim::Preset;
+use cairn_fs_tools::sim::{Preset, simulate_preset};
 use cairn_fs_tools::track::Track;
 use cairn_fs_tools::trackgen::{TrackRules, random_track};
 use cairn_slam::Color;
@@ -23,7 +23,7 @@ fn run_on(
     change: impl FnOnce(&mut Track, &mut Course),
 ) -> (GraphSlam, Report) {
     change(&mut track, &mut course);
-    let sim = common::simulate_preset(&track, &course, Preset::standard(), seed);
+    let sim = simulate_preset(&track, &course, Preset::standard(), seed);
     run_and_score(&sim, common::standard_graph_config())
 }
 

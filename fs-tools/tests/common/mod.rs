@@ -24,8 +24,6 @@ pub fn simulate_seed(track: &Track, course: &Course, seed: u64) -> Simulation {
     )
 }
 
-pub use cairn_fs_tools::sim::simulate_preset;
-
 /// What the graph front end is told of a `standard` log: the shipped
 /// `configs/standard.toml`, maximum-likelihood association.
 pub fn standard_graph_config() -> FrontEndConfig {
