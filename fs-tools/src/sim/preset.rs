@@ -90,7 +90,7 @@ pub struct Preset {
     pub sensor: SensorModel,
     /// Odometry.
     pub odometry: OdometryModel,
-    /// How fast the car drives, up to [`SimConfig::speed`].
+    /// How fast the car drives, up to [`SimConfig::speed`](super::SimConfig::speed).
     pub speed: SpeedProfile,
 }
 
