@@ -63,6 +63,8 @@ pub struct Pair {
     pub d2: f64,
     /// −log likelihood up to a constant: d² + ln det S.
     pub cost: f64,
+    /// The colour penalty included in `d2` (0 when the colours agree).
+    pub penalty: f64,
     /// Innovation z − h(x, m).
     pub innovation: Vector2<f64>,
     /// Jacobian of h with respect to the pose.
@@ -126,6 +128,7 @@ impl Pair {
             landmark,
             d2,
             cost: d2 + det.ln(),
+            penalty: colour_penalty,
             innovation,
             h_pose,
             s_pose,

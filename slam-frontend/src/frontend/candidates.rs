@@ -78,7 +78,9 @@ impl GraphSlam {
                         // landmark covariance are formed: ‖Hₚ‖²_F = 2 + |diff|²
                         // (Hₚ = [−Rᵀ, J Rᵀ diff], both rotations) and the
                         // trace is the same in any frame.
-                        let gate = self.config.new_landmark_gate - penalty;
+                        // Wide enough to tell new cones apart; hindsight
+                        // asks wider for the detector's tail.
+                        let limit = self.config.new_landmark_gate.max(gate);
                         let local_trace = lm.cov.trace() + r.trace();
                         let h_norm2 = 2.0 + diff.norm_squared();
                         if beyond_gate(
@@ -86,7 +88,7 @@ impl GraphSlam {
                             h_norm2,
                             pose_trace,
                             local_trace,
-                            gate,
+                            limit - penalty,
                         ) {
                             return None;
                         }
@@ -99,7 +101,7 @@ impl GraphSlam {
                             &(rt * lm.cov * rt.transpose()),
                             pose_cov,
                             penalty,
-                            self.config.new_landmark_gate,
+                            limit,
                         )
                     })
                     .collect();
