@@ -98,7 +98,10 @@ impl GraphSlam {
     /// rebuilds the sightings from the result. Detections left unexplained
     /// that gather on one spot found a landmark
     /// ([`GraphSlam::map_unmatched_clusters`]); landmarks left without a
-    /// sighting leave the map.
+    /// sighting leave the map. With `learn_tail`, a cone's likelihood has
+    /// the detector's tail and clutter its rate, both learnt from these
+    /// detections (`hindsight/tail.rs`). Returns the matches changed and
+    /// the tail.
     fn associate_in_hindsight(
         &mut self,
         scans: &[PendingScan],
