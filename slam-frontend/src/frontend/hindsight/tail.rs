@@ -6,9 +6,10 @@
 //! A detection's likelihood given its landmark is the mixture
 //! (1 − w)·N(0, S) + w·N(0, k²S) with k = [`SPREAD`]; the weight w is the
 //! maximum-likelihood fit (EM) to each detection's nearest landmark, beside
-//! clutter at the config's density. On a Gaussian detector it stays near 0
-//! (clutter beside a cone is what the tail then has to explain) and the
-//! costs are the Gaussian's.
+//! clutter spread evenly over the view, whose rate per scan is fitted with
+//! it (never below the config's). On a Gaussian detector the weight stays
+//! near 0 (clutter beside a cone is what the tail then has to explain) and
+//! the costs are the Gaussian's.
 
 use crate::frontend::GraphSlam;
 use crate::frontend::association::Pair;
@@ -16,9 +17,9 @@ use crate::frontend::association::Pair;
 /// The weight of the detector's tail from which it is reported.
 const REPORTED_TAIL: f64 = 0.005;
 
-/// The tail's σ against the detector's: the one shape fitted, its weight
-/// learnt. Student-t noise of 3 degrees of freedom puts 1.4% of each axis
-/// beyond 3σ, most within 4σ·3.
+/// The tail's σ against the detector's: one shape, its weight learnt.
+/// Student-t noise of 3 degrees of freedom at the detector's σ puts 1.4%
+/// of each axis beyond 3σ, and most of that within 3 × 4σ.
 pub(super) const SPREAD: f64 = 4.0;
 
 /// EM rounds at most; it stops once the weight moves less than `1e-6`.
