@@ -65,7 +65,7 @@ fn a_long_lap_that_ends_nine_metres_off_still_closes() {
     // Random track 0 (425 m), `hard` seed 4: the heading slips 3° on a
     // sparse stretch and the first lap ends 9 m off, beyond the 8 m place
     // recognition looked for on any lap (it never closed: ATE 10 m,
-    // association 89%). 3% of the distance driven is 12.7 m there.
+    // association 89%). 5% of the distance driven is 21 m there.
     closes_within(0, 4, 0.5, 0.99);
 }
 

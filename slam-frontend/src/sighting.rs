@@ -373,8 +373,15 @@ pub fn in_view_within(
 /// Whether `pose` is back where the run began: near it, not far to its
 /// side, heading the same way.
 pub fn near_start(first: &SE2, pose: &SE2) -> bool {
+    near_start_within(first, pose, NEAR_START)
+}
+
+/// [`near_start`], where the estimate may be up to `reach` metres (at least
+/// [`NEAR_START`]) ahead of or behind the start: after a long lap's drift the
+/// car reaches the start cones only once its estimate has passed them.
+pub fn near_start_within(first: &SE2, pose: &SE2, reach: f64) -> bool {
     let offset = first.inverse().transform_point(&pose.t);
-    offset.norm() < NEAR_START
+    offset.norm() < reach.max(NEAR_START)
         && offset.y.abs() < NEAR_START_ASIDE
         && normalize_angle(first.theta - pose.theta).abs() < 0.8
 }
@@ -493,5 +500,11 @@ mod tests {
         assert!(!at(20.0, -14.0, 0.0));
         // Too far back.
         assert!(!at(33.0, -14.0, 3.1));
+        // Unless the drift may be that large; still not beside the start.
+        let within = |x, y, theta| near_start_within(&first, &SE2::new(x, y, theta), 20.0);
+        assert!(within(33.0, -14.0, 3.1));
+        assert!(within(2.0, -15.0, 3.1));
+        assert!(!within(20.0, -3.0, 3.1));
+        assert!(!within(41.0, -14.0, 3.1));
     }
 }

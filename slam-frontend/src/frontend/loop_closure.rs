@@ -6,7 +6,7 @@ use super::association::{AssociationMethod, Candidates, Correlation, associate};
 use super::{GraphSlam, Mode, Observation, align, chi2_99, nearest_information};
 use crate::color::Color;
 use crate::log::Detection;
-use crate::sighting::{START_AREA, View, near_start};
+use crate::sighting::{START_AREA, View, near_start_within};
 use cairn_core::SE2;
 use nalgebra::{Matrix2, Matrix3, Vector2};
 
@@ -34,11 +34,13 @@ impl GraphSlam {
             .is_start_area(self.motion.distance(), self.pose.theta)
     }
 
-    /// Whether `pose` is back where the run began.
+    /// Whether `pose` is back where the run began, within the drift place
+    /// recognition allows for the distance driven.
     pub(super) fn back_at_start(&self, pose: &SE2) -> bool {
+        let reach = align::max_shift(self.motion.distance());
         self.poses
             .first()
-            .is_some_and(|p| near_start(&p.pose, pose))
+            .is_some_and(|p| near_start_within(&p.pose, pose, reach))
     }
 
     /// Whether landmark `l` is a start-area landmark waiting for the lap to
