@@ -8,13 +8,23 @@ use cairn::slam::frontend::association::AssociationMethod;
 use cairn::slam::frontend::{ConfigError, FrontEndConfig};
 use std::path::Path;
 
-fn shipped(name: &str) -> FrontEndConfig {
+fn shipped_text(name: &str) -> String {
     let path = Path::new(env!("CARGO_MANIFEST_DIR"))
         .join("configs")
         .join(name);
-    let text = std::fs::read_to_string(&path).expect("the shipped config reads");
-    FrontEndConfig::from_toml(&text).unwrap_or_else(|e| panic!("{}: {e}", path.display()))
+    std::fs::read_to_string(&path).unwrap_or_else(|e| panic!("{}: {e}", path.display()))
 }
+
+fn shipped(name: &str) -> FrontEndConfig {
+    FrontEndConfig::from_toml(&shipped_text(name)).unwrap_or_else(|e| panic!("{name}: {e}"))
+}
+
+const KINDS: [EstimatorKind; 4] = [
+    EstimatorKind::Graph,
+    EstimatorKind::Ekf,
+    EstimatorKind::FastSlam1,
+    EstimatorKind::FastSlam2,
+];
 
 #[test]
 fn every_shipped_config_reads_and_round_trips() {
@@ -101,14 +111,46 @@ fn the_preset_files_describe_the_presets() {
                 "{name}: {key} {file} vs {preset}"
             );
         }
-        let graph = assumed_config(
-            preset.name,
-            AssociationMethod::Tracking,
-            EstimatorKind::Graph,
-        )
-        .expect("the preset has a shipped config");
-        assert_eq!(graph, config, "{name}: the graph's gate is the file's");
+        // `--config configs/<preset>.toml` and `--noise <preset>` assume
+        // the same, for every estimator.
+        for kind in KINDS {
+            let told = assumed_config(preset.name, AssociationMethod::Tracking, kind)
+                .expect("the preset has a shipped config");
+            let file = FrontEndConfig::from_toml_for(&shipped_text(name), kind)
+                .expect("the shipped config reads");
+            assert_eq!(told, file, "{name}, {kind:?}");
+        }
     }
+}
+
+#[test]
+fn a_gate_left_out_is_the_estimators_and_one_given_holds_for_every_estimator() {
+    let rare = "false_positives = 0.3\n";
+    let graph = FrontEndConfig::from_toml_for(rare, EstimatorKind::Graph).expect("reads");
+    assert_eq!(graph.gate, 13.82);
+    for kind in [
+        EstimatorKind::Ekf,
+        EstimatorKind::FastSlam1,
+        EstimatorKind::FastSlam2,
+    ] {
+        let filter = FrontEndConfig::from_toml_for(rare, kind).expect("reads");
+        assert_eq!(filter.gate, 9.21, "{kind:?}");
+    }
+    // Clutter in every other scan narrows the graph's gate too.
+    let often = "false_positives = 1.0\n";
+    let graph = FrontEndConfig::from_toml_for(often, EstimatorKind::Graph).expect("reads");
+    assert_eq!(graph.gate, 9.21);
+    let given = "false_positives = 0.3\ngate = 11.0\n";
+    assert!(FrontEndConfig::gives_gate(given) && !FrontEndConfig::gives_gate(rare));
+    for kind in KINDS {
+        let config = FrontEndConfig::from_toml_for(given, kind).expect("reads");
+        assert_eq!(config.gate, 11.0, "{kind:?}");
+    }
+    // The gate it sets is range-checked like one the file gives.
+    let err = FrontEndConfig::from_toml_for("new_landmark_gate = 12.0", EstimatorKind::Graph)
+        .unwrap_err()
+        .to_string();
+    assert!(err.contains("new_landmark_gate must be finite and above 13.82"), "{err}");
 }
 
 #[test]

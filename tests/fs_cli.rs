@@ -234,6 +234,27 @@ fn every_estimator_and_point_clouds_run_from_the_command_line() {
     assert!(report["map_rmse"].as_f64().unwrap() < 0.2, "{report}");
 }
 
+/// `--config configs/standard.toml` assumes what `--noise standard` does,
+/// for the graph and for the filters, whose χ² gate is narrower: the file
+/// leaves the gate to the estimator.
+#[test]
+fn the_shipped_config_and_the_noise_preset_map_alike() {
+    let dir = temp_dir("config-noise");
+    simulate_short_run(&dir, &[]);
+    let file = Path::new(env!("CARGO_MANIFEST_DIR")).join("configs/standard.toml");
+    for estimator in ["graph", "ekf"] {
+        let mut maps = Vec::new();
+        for told in [["--noise", "standard"], ["--config", s(&file)]] {
+            let mut extra = vec!["--estimator", estimator, "--association", "ml"];
+            extra.extend(told);
+            slam_and_score(&dir, &extra);
+            maps.push(std::fs::read_to_string(dir.join("m.csv")).unwrap());
+        }
+        assert!(maps[0].lines().count() > 10, "{estimator}: {}", maps[0]);
+        assert_eq!(maps[0], maps[1], "{estimator}");
+    }
+}
+
 /// Median distance from each blue or yellow cone of `truth_map.csv` in
 /// `dir` to the nearest cone of its colour (m).
 fn boundary_spacing(dir: &Path) -> f64 {

@@ -25,8 +25,9 @@ pub enum PresetConfigError {
     Config(String, ConfigError),
 }
 
-/// The settings `configs/<preset>.toml` gives, with `association` and the
-/// χ² gate for `kind` ([`FrontEndConfig::gate_for`]).
+/// The settings `configs/<preset>.toml` gives for an estimator of `kind`
+/// ([`FrontEndConfig::from_toml_for`]: the files leave the χ² gate to the
+/// estimator), with `association`.
 pub fn assumed_config(
     preset: &str,
     association: AssociationMethod,
@@ -36,10 +37,9 @@ pub fn assumed_config(
         .iter()
         .find(|(name, _)| *name == preset)
         .ok_or_else(|| PresetConfigError::Unknown(preset.to_string()))?;
-    let mut config = FrontEndConfig::from_toml(text)
+    let mut config = FrontEndConfig::from_toml_for(text, kind)
         .map_err(|e| PresetConfigError::Config(preset.to_string(), e))?;
     config.association = association;
-    config.gate = FrontEndConfig::gate_for(kind, config.false_positives);
     Ok(config)
 }
 

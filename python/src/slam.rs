@@ -65,7 +65,7 @@ pub fn fs_slam<'py>(
             let text = String::from_utf8(read(path)?).map_err(|e| {
                 PyValueError::new_err(format!("{}: not UTF-8 ({e})", path.display()))
             })?;
-            FrontEndConfig::from_toml(&text)
+            FrontEndConfig::from_toml_for(&text, kind)
                 .map_err(|e| PyValueError::new_err(format!("{}: {e}", path.display())))?
         }
         None => assumed_config("standard", method, kind)

@@ -284,6 +284,27 @@ impl FrontEndConfig {
         Ok(config)
     }
 
+    /// Reads settings from TOML text for an estimator of `kind`: as
+    /// [`FrontEndConfig::from_toml`], but where the file gives no `gate`
+    /// the gate is the estimator's ([`FrontEndConfig::gate_for`], by the
+    /// file's `false_positives`), so that one file describing a sensor
+    /// serves every estimator as `fs-slam --noise` does. A `gate` the file
+    /// gives holds for every estimator.
+    pub fn from_toml_for(text: &str, kind: EstimatorKind) -> Result<Self, ConfigError> {
+        let mut config: Self = toml::from_str(text)?;
+        if !Self::gives_gate(text) {
+            config.gate = Self::gate_for(kind, config.false_positives);
+        }
+        config.validate()?;
+        Ok(config)
+    }
+
+    /// Whether the TOML text sets `gate` (false for text that is not TOML).
+    pub fn gives_gate(text: &str) -> bool {
+        text.parse::<toml::Table>()
+            .is_ok_and(|table| table.contains_key("gate"))
+    }
+
     /// The settings as TOML, which [`FrontEndConfig::from_toml`] reads back
     /// to the same values.
     pub fn to_toml(&self) -> String {

@@ -21,9 +21,15 @@ pub(super) fn slam_config(a: &SlamArgs, kind: EstimatorKind) -> Result<FrontEndC
         };
     let mut config = match &a.config {
         Some(path) => {
+            let text = read_text(path)?;
             let mut config =
-                FrontEndConfig::from_toml(&read_text(path)?).map_err(bad_input(path.display()))?;
+                FrontEndConfig::from_toml_for(&text, kind).map_err(bad_input(path.display()))?;
             describe_detector(&mut config, a)?;
+            // A gate the file leaves to the estimator follows the false
+            // positives `--false-positives` may have changed.
+            if !FrontEndConfig::gives_gate(&text) {
+                config.gate = FrontEndConfig::gate_for(kind, config.false_positives);
+            }
             config
         }
         None => {
