@@ -150,7 +150,10 @@ fn a_gate_left_out_is_the_estimators_and_one_given_holds_for_every_estimator() {
     let err = FrontEndConfig::from_toml_for("new_landmark_gate = 12.0", EstimatorKind::Graph)
         .unwrap_err()
         .to_string();
-    assert!(err.contains("new_landmark_gate must be finite and above 13.82"), "{err}");
+    assert!(
+        err.contains("new_landmark_gate must be finite and above 13.82"),
+        "{err}"
+    );
 }
 
 #[test]
