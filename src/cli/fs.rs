@@ -110,8 +110,9 @@ pub struct SlamArgs {
     map_in: Option<PathBuf>,
     /// Everything the estimators assume about the detector, the odometry and
     /// the run, from a TOML file (`configs/` holds documented examples:
-    /// standard.toml, hard.toml, mrclam.toml). The options below override
-    /// single values; without it the settings follow `--noise`.
+    /// standard.toml, hard.toml, realistic.toml, mrclam.toml). A file
+    /// without `gate` gets the estimator's χ² gate. The options below
+    /// override single values; without it the settings follow `--noise`.
     #[arg(long, value_name = "FILE.toml")]
     config: Option<PathBuf>,
     /// Data association: ml, scnn, jcbb or tracking (default: the config's,
