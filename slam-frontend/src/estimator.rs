@@ -266,6 +266,10 @@ impl Estimator for FastSlam {
     fn associations(&self) -> Vec<Association> {
         FastSlam::associations(self)
     }
+    fn finish(&mut self) -> Result<(), OptimiseError> {
+        FastSlam::finish(self);
+        Ok(())
+    }
     fn timing(&self) -> &Timing {
         FastSlam::timing(self)
     }

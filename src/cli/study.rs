@@ -146,7 +146,8 @@ pub fn run(a: StudyArgs) -> Result<(), super::CliError> {
          latency is the p99 of per-scan update time on this 2-core machine. \
          `graph` is the pose/landmark graph of `docs/fs-slam.md`; `ekf` is EKF-SLAM with the \
          full joint covariance; `fastslam1`/`fastslam2` are FastSLAM 1.0/2.0 with a 2×2 EKF \
-         per landmark per particle and the best particle's map. \
+         per landmark per particle and the best particle's map, its path and map smoothed \
+         at the loop closure and at the end of the run. \
          {}\n",
         a.seeds,
         a.random,
@@ -364,16 +365,20 @@ fn comparison(md: &mut String, runs: &[Run]) {
          Why the filters behave as they do:\n\n\
          - FastSLAM 1.0 draws poses from the motion model alone. With odometry noise far \
          above the detector's, most particles disagree with the scan and a few survive each \
-         resampling, so the path random-walks along the track: the corridor test in \
-         `fs-tools/tests/estimators.rs` measures 0.54 m of map RMSE after 100 m \
-         straight, where the other estimators stay at 0.05–0.09 m.\n\
-         - FastSLAM 2.0's proposal folds the scan into the pose it samples, which narrows \
-         that walk but cannot stop it (the corridor test: 0.45 m). Each particle's map is \
-         conditioned on its own path, so the drift of the first lap is undone at the loop \
-         closure only by choosing a particle that drifted less, and with few particles their \
-         paths share an ancestor a few seconds back (see the particle table). Place \
-         recognition at the start (the same scan-to-map alignment the graph uses) is what \
-         lets it close the loop at all.\n\
+         resampling, so the path random-walks along the track. FastSLAM 2.0's proposal \
+         folds the scan into the pose it samples, which narrows that walk but cannot stop \
+         it. Each particle's map is conditioned on its own path, and after a lap every \
+         particle descends from one ancestor (see the particle table), so no particle's map \
+         has undone the lap's drift: choosing among them at the loop closure left the \
+         `standard` maps 0.34–0.44 m off (docs/bench/fs-slam-history.md). So the chosen \
+         particle's path and map are smoothed with Cairn's solver at the closure, before \
+         every particle carries on with it, and again at the end of the run: its own \
+         odometry, sightings and associations, with the gyro's bias beside the poses as in \
+         the graph's full optimisation. The corridor test in \
+         `fs-tools/tests/estimators.rs` (100 m straight, no loop) measures 0.09 m (1.0) and \
+         0.05 m (2.0) after it, 0.54 and 0.45 m before. Place recognition at the start (the \
+         same scan-to-map alignment the graph uses) is what lets them close the loop at \
+         all.\n\
          - EKF-SLAM keeps the cross-covariances, so closing the loop corrects the whole map; \
          its gates must use them too. Its state carries the gyro's bias beside the pose, \
          so each step's turn is weighed by the yaw rate's white noise alone, as in the \

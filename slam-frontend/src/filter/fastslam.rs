@@ -3,12 +3,12 @@
 //! association. 1.0 samples the pose from the motion model; 2.0 folds the
 //! scan's matched observations into the proposal it samples from.
 
+use super::closure::{self, ScanEvidence, record};
 use super::particle::{Landmark, Particle, Step, proposal, push_step, refine};
 use super::{Choice, Run, candidates, landmark_from, measurement};
-use crate::color::Color;
 use crate::files::{Association, StampedPose};
 use crate::frontend::association::Correlation;
-use crate::frontend::{FrontEndConfig, MERGE_RADIUS, Mode, Timing, beside};
+use crate::frontend::{FrontEndConfig, Mode, Timing, beside};
 use crate::log::{Detection, Record};
 use crate::map::Cone;
 use crate::motion::compose_jacobians;
@@ -51,6 +51,11 @@ pub struct ParticleConfig {
     pub missed_log_weight: f64,
     /// Seed of the sampler.
     pub seed: u64,
+    /// At a loop closure, smooth the chosen particle's path and map with
+    /// Cairn's solver (its own odometry, sightings and associations) before
+    /// every particle carries on with it. Without, only the landmarks made
+    /// on the way back into the start area move.
+    pub smooth_at_closure: bool,
 }
 
 impl ParticleConfig {
@@ -65,6 +70,7 @@ impl ParticleConfig {
             // Detection probability ≈ 0.9.
             missed_log_weight: (0.1f64).ln(),
             seed: 0,
+            smooth_at_closure: true,
         }
     }
 }
@@ -77,6 +83,8 @@ pub struct FastSlam {
     settings: ParticleConfig,
     rng: StdRng,
     resamplings: usize,
+    /// Every scan's motion and measurements, for the smoothing.
+    evidence: Vec<ScanEvidence>,
 }
 
 impl FastSlam {
@@ -95,6 +103,7 @@ impl FastSlam {
             rng: StdRng::seed_from_u64(settings.seed),
             settings,
             resamplings: 0,
+            evidence: Vec::new(),
         }
     }
 
@@ -136,6 +145,24 @@ impl FastSlam {
         }
     }
 
+    /// The end of the run: the best particle's path and map smoothed over
+    /// the whole run ([`ParticleConfig::smooth_at_closure`]).
+    pub fn finish(&mut self) {
+        if !self.settings.smooth_at_closure || self.run.map_given {
+            return;
+        }
+        let best = self.best_index();
+        let walk = self.run.config.yaw_rate_bias_walk;
+        // A solve that fails leaves the particle as it was.
+        let start = self.run.start;
+        let _ = closure::smooth(
+            &mut self.particles[best],
+            &self.evidence,
+            &[],
+            (&start, walk),
+        );
+    }
+
     /// Mapping or localising.
     pub fn mode(&self) -> Mode {
         self.run.mode
@@ -172,7 +199,18 @@ impl FastSlam {
     fn update(&mut self, t: f64, cones: &[Detection]) {
         let scan = self.run.scans;
         self.run.scans += 1;
-        let (delta, q) = self.run.motion.take();
+        let measurements: Vec<_> = cones
+            .iter()
+            .map(|d| measurement(&self.run.config, d))
+            .collect();
+        let noise = self.run.config.yaw_rate_noise;
+        let (delta, q) = record(
+            &mut self.evidence,
+            t,
+            &mut self.run.motion,
+            noise,
+            &measurements,
+        );
         if scan == 0 {
             for p in &mut self.particles {
                 p.pose = self.run.start;
@@ -198,10 +236,6 @@ impl FastSlam {
             }
             Ok(None) => {}
         }
-        let measurements: Vec<_> = cones
-            .iter()
-            .map(|d| measurement(&self.run.config, d))
-            .collect();
         // The motion's noise is L·n for a standard normal n.
         let q_l = (q + Matrix3::identity() * 1e-12)
             .cholesky()
@@ -253,45 +287,20 @@ impl FastSlam {
                     Rc::make_mut(lm).sighting.settle();
                 }
             }
-            self.snap(&mut chosen, &place);
+            let recent = self.run.motion.distance() - START_AREA;
+            let merged = closure::snap(&mut chosen, &place, recent);
+            if self.settings.smooth_at_closure && !self.run.map_given {
+                // A solve that fails leaves the particle as snapped.
+                let walk = self.run.config.yaw_rate_bias_walk;
+                let start = self.run.start;
+                let _ = closure::smooth(&mut chosen, &self.evidence, &merged, (&start, walk));
+            }
             for p in &mut self.particles {
                 *p = chosen.clone();
                 p.log_weight = 0.0;
             }
         } else {
             self.resample();
-        }
-    }
-
-    /// Moves a particle to `place` at a loop closure. The landmarks it made
-    /// on the way back into the start area carry the same drift, so they
-    /// move with it, and those that then fall on an older landmark are
-    /// duplicates and go.
-    fn snap(&self, particle: &mut Particle, place: &SE2) {
-        let correction = place.compose(&particle.pose.inverse());
-        if correction.t.norm() < 1e-9 && correction.theta.abs() < 1e-9 {
-            return;
-        }
-        particle.pose = *place;
-        let recent = self.run.motion.distance() - START_AREA;
-        let older: Vec<(Vector2<f64>, Color)> = particle
-            .map
-            .iter()
-            .filter(|lm| !lm.removed && lm.sighting.created_distance < recent)
-            .map(|lm| (lm.mean, lm.sighting.color()))
-            .collect();
-        let rotation = correction.rotation();
-        for slot in &mut particle.map {
-            if slot.removed || slot.sighting.created_distance < recent {
-                continue;
-            }
-            let lm = Rc::make_mut(slot);
-            lm.mean = correction.transform_point(&lm.mean);
-            lm.cov = rotation * lm.cov * rotation.transpose();
-            let color = lm.sighting.color();
-            lm.removed = older
-                .iter()
-                .any(|(m, c)| (m - lm.mean).norm() < MERGE_RADIUS && c.compatible(color));
         }
     }
 

@@ -5,6 +5,7 @@
 //! and lap detection ([`crate::sighting`]) and its localisation mode; their
 //! measurement model is range and bearing.
 
+mod closure;
 pub mod ekf;
 pub mod fastslam;
 mod particle;

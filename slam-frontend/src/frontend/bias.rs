@@ -18,10 +18,10 @@ use nalgebra::{Matrix2, Matrix3, Matrix5, SMatrix, SVector, Vector2, Vector3, Ve
 /// changes speed or turns: a cone seen at 3 and at 8 m/s from poses 50 ms
 /// off lands 0.25 m apart.
 #[derive(Clone, Copy, Debug, Default)]
-pub(super) struct PoseBias {
-    pub(super) pose: SE2,
-    pub(super) bias: f64,
-    pub(super) latency: f64,
+pub(crate) struct PoseBias {
+    pub(crate) pose: SE2,
+    pub(crate) bias: f64,
+    pub(crate) latency: f64,
 }
 
 impl Variable<5> for PoseBias {
@@ -59,7 +59,7 @@ const LATENCY_WALK: f64 = 1e-4;
 /// heading change less (bias − the bias the integration assumed)·dt, the
 /// bias's random walk and the latency's.
 #[derive(Clone, Debug)]
-pub(super) struct OdometryBias {
+pub(crate) struct OdometryBias {
     delta: SE2,
     dt: f64,
     bias_used: f64,
@@ -70,7 +70,7 @@ impl OdometryBias {
     /// the yaw rate's white noise for heading (the position–heading
     /// correlation kept), the bias's random walk of `walk` rad/s/√s and
     /// the latency's of [`LATENCY_WALK`].
-    pub(super) fn new(o: &OdometryEdge, walk: f64) -> (Self, Matrix5<f64>) {
+    pub(crate) fn new(o: &OdometryEdge, walk: f64) -> (Self, Matrix5<f64>) {
         let cov: Matrix3<f64> = o.information.try_inverse().unwrap_or_else(Matrix3::zeros);
         let cov = with_heading_variance(&cov, o.heading_variance);
         let info3 = cov.try_inverse().unwrap_or(o.information);
@@ -83,7 +83,7 @@ impl OdometryBias {
     }
 
     /// The edge of `o` alone.
-    pub(super) fn edge(o: &OdometryEdge) -> Self {
+    pub(crate) fn edge(o: &OdometryEdge) -> Self {
         Self {
             delta: o.delta,
             dt: o.dt,
@@ -130,7 +130,7 @@ impl OdometryBias {
     /// ∂ of the error's pose part with respect to the sideslip, from `a`,
     /// where `slip_jacobian` is that of the measured motion's translation:
     /// the error subtracts the motion, turned back by the corrected turn.
-    pub(super) fn sideslip_jacobian(
+    pub(crate) fn sideslip_jacobian(
         &self,
         a: &PoseBias,
         slip_jacobian: &Vector2<f64>,
@@ -150,10 +150,10 @@ impl OdometryBias {
 /// the pose, while the car moved at `speed` (m/s) and turned at `yaw_rate`
 /// (rad/s); the bias plays no part. Zero speeds leave the latency out.
 #[derive(Clone, Debug)]
-pub(super) struct SightingBias {
-    pub(super) sighting: EdgeSE2XY,
-    pub(super) speed: f64,
-    pub(super) yaw_rate: f64,
+pub(crate) struct SightingBias {
+    pub(crate) sighting: EdgeSE2XY,
+    pub(crate) speed: f64,
+    pub(crate) yaw_rate: f64,
 }
 
 impl BinaryEdge<2, 5, 2> for SightingBias {
@@ -192,10 +192,10 @@ impl BinaryEdge<2, 5, 2> for SightingBias {
 /// (the lap decides the bias) and on the scans being no later than the
 /// config says ([`LATENCY_PRIOR`]).
 #[derive(Clone, Debug)]
-pub(super) struct StartPrior(pub(super) PoseBias);
+pub(crate) struct StartPrior(pub(crate) PoseBias);
 
 impl StartPrior {
-    pub(super) fn information() -> Matrix5<f64> {
+    pub(crate) fn information() -> Matrix5<f64> {
         let latency = 1.0 / (LATENCY_PRIOR * LATENCY_PRIOR);
         Matrix5::from_diagonal(&Vector5::new(1e8, 1e8, 1e8, 1e2, latency))
     }

@@ -7,30 +7,30 @@ use nalgebra::{Matrix3, SMatrix, Vector2};
 
 /// The odometry between consecutive keyframes.
 #[derive(Clone, Copy, Debug)]
-pub(super) struct OdometryEdge {
+pub(crate) struct OdometryEdge {
     /// Motion integrated from the odometry, with the calibration of the time.
-    pub(super) delta: SE2,
+    pub(crate) delta: SE2,
     /// Its information, bias included (for the smoother).
-    pub(super) information: Matrix3<f64>,
+    pub(crate) information: Matrix3<f64>,
     /// Time between the keyframes (s).
-    pub(super) dt: f64,
+    pub(crate) dt: f64,
     /// The yaw-rate bias the integration took out (rad/s).
-    pub(super) yaw_rate_bias: f64,
+    pub(crate) yaw_rate_bias: f64,
     /// ∂ of the motion's translation with respect to the sideslip (m per
     /// rad per m/s²), and the part of it the sideslip assumed in the
     /// integration made (that ∂ times it, summed over chained edges).
-    pub(super) slip_jacobian: Vector2<f64>,
-    pub(super) slip_made: Vector2<f64>,
+    pub(crate) slip_jacobian: Vector2<f64>,
+    pub(crate) slip_made: Vector2<f64>,
     /// Variance of the integrated heading from the yaw rate's white noise
     /// alone (rad²).
-    pub(super) heading_variance: f64,
+    pub(crate) heading_variance: f64,
 }
 
 impl OdometryEdge {
     /// The odometry across consecutive edges, as one edge. The bias taken
     /// out is their time-weighted mean, so the turn corrected for a bias
     /// b is the same, Σ (Δθᵢ + (usedᵢ − b)·dtᵢ).
-    pub(super) fn chain(edges: &[OdometryEdge]) -> OdometryEdge {
+    pub(crate) fn chain(edges: &[OdometryEdge]) -> OdometryEdge {
         if let [edge] = edges {
             return *edge;
         }
@@ -63,7 +63,7 @@ impl OdometryEdge {
 
     /// The motion as if integrated with `sideslip` (first order in the
     /// change of sideslip).
-    pub(super) fn with_sideslip(&self, sideslip: f64) -> SE2 {
+    pub(crate) fn with_sideslip(&self, sideslip: f64) -> SE2 {
         let t = self.delta.t + self.slip_jacobian * sideslip - self.slip_made;
         SE2::new(t.x, t.y, self.delta.theta)
     }
@@ -78,7 +78,7 @@ impl OdometryEdge {
 const ODOMETRY_FLOOR: f64 = 1e-3;
 
 /// Information of an odometry edge: the integrated covariance with [`ODOMETRY_FLOOR`].
-pub(super) fn odometry_information(cov: &Matrix3<f64>) -> Matrix3<f64> {
+pub(crate) fn odometry_information(cov: &Matrix3<f64>) -> Matrix3<f64> {
     let floor = ODOMETRY_FLOOR * ODOMETRY_FLOOR;
     nearest_information(&(cov + Matrix3::from_diagonal(&nalgebra::Vector3::new(floor, floor, 0.0))))
 }

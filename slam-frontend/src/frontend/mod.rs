@@ -5,13 +5,13 @@
 
 pub(crate) mod align;
 pub mod association;
-mod bias;
+pub(crate) mod bias;
 mod bias_walk;
 mod calibration;
 mod candidates;
 mod config;
 pub(crate) mod dispersion;
-mod edges;
+pub(crate) mod edges;
 mod fits;
 pub mod grid;
 mod hindsight;
