@@ -587,7 +587,7 @@ fn fastslam_smooths_the_lap_it_closes() {
     let reports = [false, true].map(|smooth| {
         let settings = ParticleConfig {
             particles: 30,
-            smooth_at_closure: smooth,
+            smooth,
             ..ParticleConfig::new(Version::Two)
         };
         let mut slam = FastSlam::new(config.clone(), settings);

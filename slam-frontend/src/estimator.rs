@@ -53,7 +53,7 @@ pub trait Estimator {
         Ok(())
     }
     /// Optimisations that failed during the run, the estimate kept (the
-    /// graph front end's loop closures); the filters have none.
+    /// graph front end's loop closures, FastSLAM's smoothings).
     fn warnings(&self) -> &[String] {
         &[]
     }
@@ -269,6 +269,9 @@ impl Estimator for FastSlam {
     fn finish(&mut self) -> Result<(), OptimiseError> {
         FastSlam::finish(self);
         Ok(())
+    }
+    fn warnings(&self) -> &[String] {
+        FastSlam::warnings(self)
     }
     fn timing(&self) -> &Timing {
         FastSlam::timing(self)

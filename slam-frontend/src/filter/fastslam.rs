@@ -51,11 +51,12 @@ pub struct ParticleConfig {
     pub missed_log_weight: f64,
     /// Seed of the sampler.
     pub seed: u64,
-    /// At a loop closure, smooth the chosen particle's path and map with
-    /// Cairn's solver (its own odometry, sightings and associations) before
-    /// every particle carries on with it. Without, only the landmarks made
-    /// on the way back into the start area move.
-    pub smooth_at_closure: bool,
+    /// Smooth the chosen particle's path and map with Cairn's solver (its
+    /// own odometry, sightings and associations) at a loop closure, before
+    /// every particle carries on with it, and the best particle's at the
+    /// end of the run. Without, a closure moves only the landmarks made on
+    /// the way back into the start area.
+    pub smooth: bool,
 }
 
 impl ParticleConfig {
@@ -70,7 +71,7 @@ impl ParticleConfig {
             // Detection probability ≈ 0.9.
             missed_log_weight: (0.1f64).ln(),
             seed: 0,
-            smooth_at_closure: true,
+            smooth: true,
         }
     }
 }
@@ -85,6 +86,7 @@ pub struct FastSlam {
     resamplings: usize,
     /// Every scan's motion and measurements, for the smoothing.
     evidence: Vec<ScanEvidence>,
+    warnings: Vec<String>,
 }
 
 impl FastSlam {
@@ -104,6 +106,7 @@ impl FastSlam {
             settings,
             resamplings: 0,
             evidence: Vec::new(),
+            warnings: Vec::new(),
         }
     }
 
@@ -146,21 +149,34 @@ impl FastSlam {
     }
 
     /// The end of the run: the best particle's path and map smoothed over
-    /// the whole run ([`ParticleConfig::smooth_at_closure`]).
+    /// the whole run ([`ParticleConfig::smooth`]).
     pub fn finish(&mut self) {
-        if !self.settings.smooth_at_closure || self.run.map_given {
+        if !self.settings.smooth || self.run.map_given {
             return;
         }
         let best = self.best_index();
-        let walk = self.run.config.yaw_rate_bias_walk;
-        // A solve that fails leaves the particle as it was.
-        let start = self.run.start;
-        let _ = closure::smooth(
+        let (start, walk) = (self.run.start, self.run.config.yaw_rate_bias_walk);
+        let smoothed = closure::smooth(
             &mut self.particles[best],
             &self.evidence,
             &[],
             (&start, walk),
         );
+        self.warn("the end of the run", smoothed);
+    }
+
+    /// Smoothings that failed, the particle kept as it was.
+    pub fn warnings(&self) -> &[String] {
+        &self.warnings
+    }
+
+    fn warn(&mut self, when: &str, smoothed: Result<(), closure::SmoothError>) {
+        if let Err(e) = smoothed {
+            let scan = self.run.scans;
+            (self.warnings).push(format!(
+                "smoothing at {when} (scan {scan}) failed ({e}); kept the particle"
+            ));
+        }
     }
 
     /// Mapping or localising.
@@ -289,11 +305,11 @@ impl FastSlam {
             }
             let recent = self.run.motion.distance() - START_AREA;
             let merged = closure::snap(&mut chosen, &place, recent);
-            if self.settings.smooth_at_closure && !self.run.map_given {
-                // A solve that fails leaves the particle as snapped.
-                let walk = self.run.config.yaw_rate_bias_walk;
-                let start = self.run.start;
-                let _ = closure::smooth(&mut chosen, &self.evidence, &merged, (&start, walk));
+            if self.settings.smooth && !self.run.map_given {
+                let (start, walk) = (self.run.start, self.run.config.yaw_rate_bias_walk);
+                let smoothed =
+                    closure::smooth(&mut chosen, &self.evidence, &merged, (&start, walk));
+                self.warn("the loop closure", smoothed);
             }
             for p in &mut self.particles {
                 *p = chosen.clone();
