@@ -132,8 +132,8 @@ pub(super) fn snap(particle: &mut Particle, place: &SE2, recent: f64) -> Vec<(us
 /// associated them (a duplicate's sightings go to the landmark of
 /// `merged` it fell on). The first scan's pose follows from `start`, where
 /// the run started, by the odometry before it; the yaw-rate bias walks at
-/// `bias_walk` (rad/s/√s). The path is rewritten
-/// with the smoothed poses and redirected associations.
+/// `bias_walk` (rad/s/√s). The path is rewritten with the smoothed poses
+/// and redirected associations; a path of one scan is left as it is.
 pub(super) fn smooth(
     particle: &mut Particle,
     evidence: &[ScanEvidence],
@@ -144,7 +144,10 @@ pub(super) fn smooth(
         std::iter::successors(particle.path.clone(), |s| s.parent.clone()).collect();
     steps.reverse();
     let n = steps.len();
-    if n < 2 || n != evidence.len() || steps.iter().enumerate().any(|(k, s)| s.scan != k) {
+    if n < 2 {
+        return Ok(());
+    }
+    if n != evidence.len() || steps.iter().enumerate().any(|(k, s)| s.scan != k) {
         return Err(SmoothError::Path);
     }
     let mut target: Vec<usize> = (0..particle.map.len()).collect();
