@@ -375,8 +375,8 @@ fn comparison(md: &mut String, runs: &[Run]) {
          every particle carries on with it, and again at the end of the run: its own \
          odometry, sightings and associations, with the gyro's bias beside the poses as in \
          the graph's full optimisation. The corridor test in \
-         `fs-tools/tests/estimators.rs` (100 m straight, no loop) measures 0.09 m (1.0) and \
-         0.05 m (2.0) after it, 0.54 and 0.45 m before. Place recognition at the start (the \
+         `fs-tools/tests/estimators.rs` (100 m straight, no loop) measures 0.11 m (1.0) and \
+         0.09 m (2.0) after it, 0.54 and 0.45 m before. Place recognition at the start (the \
          same scan-to-map alignment the graph uses) is what lets them close the loop at \
          all.\n\
          - EKF-SLAM keeps the cross-covariances, so closing the loop corrects the whole map; \

@@ -10,6 +10,7 @@
 //! carries the gyro's yaw-rate bias, so the integrated turns are weighed by
 //! the yaw rate's white noise and not by a σ wide enough to cover the bias.
 
+use super::landmark_from;
 use super::particle::{Particle, Step};
 use crate::color::Color;
 use crate::files::StampedPose;
@@ -200,13 +201,11 @@ pub(super) fn smooth(
                     v
                 }
             };
-            let (s, c) = z.y.sin_cos();
-            let j = Matrix2::new(c, -z.x * s, s, z.x * c);
-            let cov = j * r * j.transpose();
-            let Some(information) = cov.try_inverse() else {
+            // The sighting in the pose's frame, and its covariance there.
+            let (xy, _, j_z) = landmark_from(&SE2::identity(), z);
+            let Some(information) = (j_z * r * j_z.transpose()).try_inverse() else {
                 continue;
             };
-            let xy = z.x * Vector2::new(c, s);
             let information = 0.5 * (information + information.transpose());
             // The scan's latency is not learnt here: no speed, no turn.
             let edge = SightingBias {
