@@ -125,6 +125,21 @@ impl Sighting {
         }
     }
 
+    /// Takes in the sightings of `duplicate`, a second landmark of the
+    /// same cone: its colour votes and sightings, whether it was confirmed
+    /// and when it was last seen.
+    pub fn absorb(&mut self, duplicate: &Sighting) {
+        for (votes, more) in self.votes.iter_mut().zip(duplicate.votes) {
+            *votes += more;
+        }
+        self.seen += duplicate.seen;
+        self.confirmed |= duplicate.confirmed;
+        if duplicate.last_seen > self.last_seen {
+            self.last_seen = duplicate.last_seen;
+            self.last_seen_distance = duplicate.last_seen_distance;
+        }
+    }
+
     /// Whether the landmark marks the start of the lap: created in the first
     /// [`START_AREA`] metres and seen again after driving at least
     /// [`MIN_LOOP`] metres, heading the same way. Adjacent parts of a track

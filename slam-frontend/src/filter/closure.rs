@@ -1,6 +1,7 @@
 //! What FastSLAM does with the chosen particle at a loop closure: move it to
-//! where the start landmarks put it, drop the landmarks it mapped twice, and
-//! smooth its path and map with Cairn's solver.
+//! where the start landmarks put it, drop the landmarks it mapped twice, tie
+//! the detections the gates left alone on the way back to the landmarks they
+//! fall on, and smooth its path and map with Cairn's solver.
 //!
 //! A particle's map is fixed by the path it was built along: resampling can
 //! only choose among the particles' maps, and after a lap they all descend
@@ -17,7 +18,9 @@ use crate::files::StampedPose;
 use crate::frontend::MERGE_RADIUS;
 use crate::frontend::bias::{OdometryBias, PoseBias, SightingBias, StartPrior};
 use crate::frontend::edges::{OdometryEdge, odometry_information};
+use crate::log::Detection;
 use crate::motion::Odometry;
+use crate::sighting::Sighting;
 use cairn_core::{EdgeSE2XY, Graph, GraphError, RobustKernel, SE2};
 use cairn_solvers::{
     Algorithm, Factorization, Initialization, Optimizer, SolveError, SolverConfig,
@@ -27,16 +30,17 @@ use std::rc::Rc;
 
 /// What the filter saw at one scan, the same for every particle: the
 /// odometry since the scan before and each detection's range, bearing and
-/// covariance.
+/// covariance, and its colour.
 #[derive(Clone, Debug)]
 pub(super) struct ScanEvidence {
     pub(super) t: f64,
     pub(super) odometry: OdometryEdge,
     pub(super) measurements: Vec<(Vector2<f64>, Matrix2<f64>)>,
+    pub(super) colors: Vec<Color>,
 }
 
 /// Takes the motion since the last scan from `motion` and keeps it, with
-/// the scan's `measurements`, in `evidence`; returns the motion and its
+/// the scan's `measurements` and the `cones` they are of, in `evidence`; returns the motion and its
 /// covariance. The heading's variance beyond the gyro's bias is that of
 /// `yaw_rate_noise` (rad/s), the gyro's white noise.
 pub(super) fn record(
@@ -45,6 +49,7 @@ pub(super) fn record(
     motion: &mut Odometry,
     yaw_rate_noise: f64,
     measurements: &[(Vector2<f64>, Matrix2<f64>)],
+    cones: &[Detection],
 ) -> (SE2, Matrix3<f64>) {
     let heading_variance = motion.white_heading_variance(yaw_rate_noise);
     let slip_jacobian = motion.slip_jacobian();
@@ -62,6 +67,7 @@ pub(super) fn record(
             heading_variance,
         },
         measurements: measurements.to_vec(),
+        colors: cones.iter().map(|d| d.color).collect(),
     });
     (delta, cov)
 }
@@ -95,7 +101,8 @@ const ITERATIONS: usize = 20;
 /// Moves `particle` to `place`. The landmarks it made within `recent`
 /// (distance travelled) of now carry the same drift, so they move with it;
 /// those that then fall on an older landmark of a compatible colour are
-/// duplicates and go. Returns (duplicate, the older landmark) pairs.
+/// duplicates and go, their sightings counted in the older one's (a cone
+/// seen twice at the start and again at the lap's end is confirmed). Returns (duplicate, the older landmark) pairs.
 pub(super) fn snap(particle: &mut Particle, place: &SE2, recent: f64) -> Vec<(usize, usize)> {
     let correction = place.compose(&particle.pose.inverse());
     if correction.t.norm() < 1e-9 && correction.theta.abs() < 1e-9 {
@@ -125,7 +132,77 @@ pub(super) fn snap(particle: &mut Particle, place: &SE2, recent: f64) -> Vec<(us
             merged.push((l, *older));
         }
     }
+    for &(duplicate, older) in &merged {
+        let sighting = particle.map[duplicate].sighting.clone();
+        Rc::make_mut(&mut particle.map[older])
+            .sighting
+            .absorb(&sighting);
+    }
     merged
+}
+
+/// Farthest a detection may fall from a landmark to be tied to it after
+/// the closure (m), as in the graph's place recognition.
+const REMATCH_RADIUS: f64 = 0.6;
+
+/// Ties the detections that `particle`'s steps from scan `first` on left
+/// without a landmark (the gates leave the start area out until the loop
+/// closes) to the landmark nearest where the closure's `correction` puts
+/// them, within [`REMATCH_RADIUS`], one detection per landmark and scan;
+/// `seen` counts each tie in the landmark's sighting with the detection's
+/// colour.
+pub(super) fn rematch(
+    particle: &mut Particle,
+    evidence: &[ScanEvidence],
+    correction: &SE2,
+    first: usize,
+    mut seen: impl FnMut(&mut Sighting, Color),
+) {
+    let recent: Vec<Rc<Step>> = std::iter::successors(particle.path.clone(), |s| s.parent.clone())
+        .take_while(|s| s.scan >= first)
+        .collect();
+    let Some(oldest) = recent.last() else {
+        return;
+    };
+    let live: Vec<(u32, Vector2<f64>)> = (particle.map.iter().enumerate())
+        .filter(|(_, lm)| !lm.removed)
+        .map(|(l, lm)| (l as u32, lm.mean))
+        .collect();
+    let mut path = oldest.parent.clone();
+    for step in recent.iter().rev() {
+        let pose = correction.compose(&step.pose.pose);
+        let mut choices = step.choices.clone();
+        let Some(scan) = evidence.get(step.scan) else {
+            continue;
+        };
+        for (i, ((z, _), color)) in scan.measurements.iter().zip(&scan.colors).enumerate() {
+            if choices.get(i).is_none_or(|c| c.is_some()) {
+                continue;
+            }
+            let (w, _, _) = landmark_from(&pose, z);
+            let nearest = live
+                .iter()
+                .filter(|(l, _)| !choices.contains(&Some(*l)))
+                .map(|(l, m)| (*l, (m - w).norm()))
+                .min_by(|a, b| a.1.total_cmp(&b.1));
+            if let Some((l, d)) = nearest
+                && d < REMATCH_RADIUS
+            {
+                choices[i] = Some(l);
+                seen(
+                    &mut Rc::make_mut(&mut particle.map[l as usize]).sighting,
+                    *color,
+                );
+            }
+        }
+        path = Some(Rc::new(Step {
+            scan: step.scan,
+            pose: step.pose,
+            choices,
+            parent: path,
+        }));
+    }
+    particle.path = path;
 }
 
 /// Smooths `particle`'s path and map: one pose per scan, chained by the
@@ -301,6 +378,88 @@ mod tests {
     }
 
     #[test]
+    fn a_merged_duplicate_confirms_the_landmark_it_falls_on() {
+        // A cone seen twice at the start (tentative) and confirmed on the
+        // way back must stay in the map once its duplicate goes.
+        let mut start = Sighting::new(Color::Blue, 0, 0.0, 0.0);
+        start.count(Color::Blue, 3);
+        start.count(Color::Blue, 3);
+        let mut back = Sighting::new(Color::Blue, 800, 100.0, 0.0);
+        for _ in 0..4 {
+            back.count(Color::Blue, 3);
+        }
+        back.last_seen = 805;
+        let mut older = landmark(Vector2::new(0.0, 2.0), 0.0);
+        Rc::make_mut(&mut older).sighting = start;
+        let mut twice = landmark(Vector2::new(1.0, 2.0), 100.0);
+        Rc::make_mut(&mut twice).sighting = back;
+        let blue = |l: &Rc<Landmark>| l.sighting.votes[Color::Blue.index()];
+        let votes = blue(&older) + blue(&twice);
+        let mut p = particle(SE2::new(1.0, 0.0, 0.0), vec![older, twice]);
+        assert_eq!(snap(&mut p, &SE2::identity(), 90.0), vec![(1, 0)]);
+        let kept = &p.map[0].sighting;
+        assert!(kept.confirmed, "{kept:?}");
+        assert_eq!((kept.seen, blue(&p.map[0])), (6, votes));
+        assert_eq!(kept.last_seen, 805);
+    }
+
+    #[test]
+    fn rematch_ties_the_approach_detections_to_the_landmarks_they_fall_on() {
+        // Two landmarks 1.5 m apart; the path drifted 1 m along x, which
+        // the closure's correction takes out. Of scan 1's three detections
+        // (all unmatched), two fall on the landmarks and one on nothing;
+        // scan 0, before the approach, is left alone.
+        let map = vec![
+            landmark(Vector2::new(5.0, 1.0), 0.0),
+            landmark(Vector2::new(6.5, 1.0), 0.0),
+        ];
+        let mut p = particle(SE2::new(1.0, 0.0, 0.0), map);
+        let drifted = SE2::new(1.0, 0.0, 0.0);
+        let r = Matrix2::identity() * 1e-4;
+        // Range and bearing from the true pose, the origin.
+        let seen_from = |w: Vector2<f64>| Vector2::new(w.norm(), w.y.atan2(w.x));
+        let detections = [
+            Vector2::new(5.1, 1.0),
+            Vector2::new(6.4, 1.1),
+            Vector2::new(9.0, -1.0),
+        ];
+        let mut evidence = Vec::new();
+        for k in 0..2 {
+            evidence.push(ScanEvidence {
+                t: 0.1 * k as f64,
+                odometry: OdometryEdge {
+                    delta: SE2::identity(),
+                    information: Matrix3::identity(),
+                    dt: 0.1,
+                    yaw_rate_bias: 0.0,
+                    slip_jacobian: Vector2::zeros(),
+                    slip_made: Vector2::zeros(),
+                    heading_variance: 1e-6,
+                },
+                measurements: detections.iter().map(|w| (seen_from(*w), r)).collect(),
+                colors: vec![Color::Yellow; 3],
+            });
+            let stamped = StampedPose {
+                t: 0.1 * k as f64,
+                pose: drifted,
+            };
+            push_step(&mut p, k, stamped, vec![None; 3]);
+        }
+        let mut counted = Vec::new();
+        rematch(&mut p, &evidence, &drifted.inverse(), 1, |s, c| {
+            s.count(c, 3);
+            counted.push(c);
+        });
+        let last = p.path.as_ref().unwrap();
+        assert_eq!(&*last.choices, &[Some(0), Some(1), None]);
+        assert_eq!(last.pose.pose, drifted, "the path's poses stay");
+        let first = last.parent.as_ref().unwrap();
+        assert_eq!(&*first.choices, &[None, None, None]);
+        assert_eq!(counted, vec![Color::Yellow; 2]);
+        assert_eq!(p.map[0].sighting.votes[Color::Yellow.index()], 1);
+    }
+
+    #[test]
     fn smoothing_takes_the_drift_out_of_a_path_and_its_map() {
         // 20 m straight, cones every 3 m on both sides, exact odometry and
         // sightings; the particle's path turned 2 mrad per scan and its map
@@ -348,6 +507,7 @@ mod tests {
                     heading_variance: 1e-6,
                 },
                 measurements: seen.iter().map(|(_, z)| (*z, r)).collect(),
+                colors: vec![Color::Blue; seen.len()],
             });
             drifted = drifted.compose(&delta).compose(&SE2::new(0.0, 0.0, 0.002));
             let stamped = StampedPose {

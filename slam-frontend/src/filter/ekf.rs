@@ -221,7 +221,7 @@ impl EkfSlam {
             }
             Ok(None) => {}
         }
-        if self.run.at_start(&self.pose()) {
+        if self.run.back_at_start(&self.pose()) {
             self.fix_pose_by_recognition(cones);
         }
 

@@ -227,6 +227,7 @@ impl FastSlam {
             &mut self.run.motion,
             noise,
             &measurements,
+            cones,
         );
         if scan == 0 {
             for p in &mut self.particles {
@@ -280,10 +281,11 @@ impl FastSlam {
         }
         let best = self.best_index();
         let (pose, returned) = (self.particles[best].pose, self.particles[best].returned);
+        let approach = self.run.approach(&pose, scan);
 
         let recognised = if self.run.lap_closed(&pose, returned) {
             Some(pose)
-        } else if self.run.at_start(&pose) {
+        } else if self.run.back_at_start(&pose) {
             let particle = &self.particles[best];
             let live = particle.map.iter().filter(|lm| !lm.removed);
             self.run.recognise(
@@ -294,30 +296,44 @@ impl FastSlam {
         } else {
             None
         };
-        if let Some(place) = recognised {
-            self.run.close_loop();
-            // Every particle carries on with the best particle's map, moved
-            // to where the start landmarks put it.
-            let mut chosen = self.particles[best].clone();
-            for lm in &mut chosen.map {
-                if lm.sighting.view == View::Returned {
-                    Rc::make_mut(lm).sighting.settle();
-                }
+        match recognised {
+            Some(place) => self.close_lap(best, &place, approach.unwrap_or(scan), scan),
+            None => self.resample(),
+        }
+    }
+
+    /// Closes a lap at `place`: every particle carries on with the best
+    /// particle's map, moved to where the start landmarks put it, its
+    /// duplicates merged, the approach's detections (from scan `first` on)
+    /// tied to the landmarks they fall on, and smoothed.
+    fn close_lap(&mut self, best: usize, place: &SE2, first: usize, scan: usize) {
+        self.run.close_loop();
+        let mut chosen = self.particles[best].clone();
+        for lm in &mut chosen.map {
+            if lm.sighting.view == View::Returned {
+                Rc::make_mut(lm).sighting.settle();
             }
-            let recent = self.run.motion.distance() - START_AREA;
-            let merged = closure::snap(&mut chosen, &place, recent);
-            if self.settings.smooth && !self.run.map_given {
-                let (start, walk) = (self.run.start, self.run.config.yaw_rate_bias_walk);
-                let smoothed =
-                    closure::smooth(&mut chosen, &self.evidence, &merged, (&start, walk));
-                self.warn("the loop closure", smoothed);
-            }
-            for p in &mut self.particles {
-                *p = chosen.clone();
-                p.log_weight = 0.0;
-            }
-        } else {
-            self.resample();
+        }
+        let recent = self.run.motion.distance() - START_AREA;
+        let correction = place.compose(&chosen.pose.inverse());
+        let merged = closure::snap(&mut chosen, place, recent);
+        // The start area's detections the gates left alone count as
+        // sightings seen now, as if the gates had matched them.
+        let (distance, confirm_after) = (self.run.motion.distance(), self.run.config.confirm_after);
+        let seen = |sighting: &mut Sighting, color| {
+            sighting.count(color, confirm_after);
+            sighting.revisit(scan, distance, place.theta);
+            sighting.settle();
+        };
+        closure::rematch(&mut chosen, &self.evidence, &correction, first, seen);
+        if self.settings.smooth && !self.run.map_given {
+            let (start, walk) = (self.run.start, self.run.config.yaw_rate_bias_walk);
+            let smoothed = closure::smooth(&mut chosen, &self.evidence, &merged, (&start, walk));
+            self.warn("the loop closure", smoothed);
+        }
+        for p in &mut self.particles {
+            *p = chosen.clone();
+            p.log_weight = 0.0;
         }
     }
 
@@ -370,8 +386,12 @@ impl FastSlam {
             ),
             Version::Two => (predicted, motion_cov),
         };
+        let awaits_closure = self.run.awaiting_closure(&at);
         let live = particle.map.iter().enumerate().filter_map(|(l, lm)| {
-            (!lm.removed && (!localising || lm.sighting.confirmed)).then_some((
+            let gated = !lm.removed
+                && (!localising || lm.sighting.confirmed)
+                && !awaits_closure(&lm.sighting);
+            gated.then_some((
                 l,
                 super::Landmark {
                     mean: lm.mean,
@@ -396,7 +416,7 @@ impl FastSlam {
                 let live = particle.map.iter().enumerate();
                 beside(
                     &w,
-                    live.filter(|(_, lm)| !lm.removed)
+                    live.filter(|(_, lm)| !lm.removed && !awaits_closure(&lm.sighting))
                         .map(|(l, lm)| (l, &lm.mean)),
                     taken,
                 )
@@ -479,7 +499,9 @@ impl FastSlam {
                 continue;
             }
             let near = (slot.mean - pose.t).norm_squared() < reach2;
-            let visible = near && in_view(config, &inverse, &slot.mean);
+            // Nor can a landmark be missed while the gates leave it out.
+            let visible =
+                near && in_view(config, &inverse, &slot.mean) && !awaits_closure(&slot.sighting);
             if visible && !associated[l] && slot.sighting.confirmed {
                 log_weight += settings.missed_log_weight;
             }

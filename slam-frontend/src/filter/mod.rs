@@ -9,17 +9,19 @@ mod closure;
 pub mod ekf;
 pub mod fastslam;
 mod particle;
+mod place;
 
 use crate::color::Color;
 use crate::files::Association;
 use crate::frontend::align;
 use crate::frontend::association::{Candidates, Correlation, Pair, associate};
 use crate::frontend::dispersion::InnovationScale;
+use crate::frontend::place_votes::PlaceVotes;
 use crate::frontend::{Beside, FrontEndConfig, Mode, Timing, chi2_99};
 use crate::log::{Detection, Record};
 use crate::map::Cone;
 use crate::motion::{Correction, Odometry};
-use crate::sighting::{ColorRate, Sighting, View, hits_and_misses, near_start};
+use crate::sighting::{ColorRate, Sighting, hits_and_misses};
 use cairn_core::SE2;
 use cairn_core::se2::normalize_angle;
 use nalgebra::{Matrix2, Matrix3, SMatrix, Vector2};
@@ -136,6 +138,10 @@ struct Run {
     placement: align::Placement,
     /// The pose of the first scan, where a lap ends.
     first_pose: Option<SE2>,
+    /// The scans' votes for where place recognition puts the car.
+    place_votes: PlaceVotes,
+    /// The first scan of the car's approach to the start, while on one.
+    approach_scan: Option<usize>,
     colors: ColorRate,
     /// How much wider the innovations run than assumed, and the factor it
     /// gives JCBB's joint test (as the graph's, [`InnovationScale`]).
@@ -163,6 +169,8 @@ impl Run {
             map_given: false,
             placement: align::Placement::default(),
             first_pose: None,
+            place_votes: PlaceVotes::default(),
+            approach_scan: None,
             innovation_scale: InnovationScale::new(),
             joint_scale: 1.0,
         }
@@ -192,57 +200,6 @@ impl Run {
         let pose = self.placement.try_place(map, cones, here).ok_or(())?;
         self.unplaced = None;
         Ok(Some(pose))
-    }
-
-    /// Whether `pose` is back where the run began, while mapping.
-    fn at_start(&self, pose: &SE2) -> bool {
-        self.mode == Mode::Mapping && self.first_pose.is_some_and(|f| near_start(&f, pose))
-    }
-
-    /// Place recognition back in the start area, for a filter whose drift
-    /// hides the start landmarks from the association gates
-    /// ([`align::recognise`]): where `cones` put the car among the
-    /// `landmarks` (mean and sighting) it left the start area with.
-    fn recognise<'a>(
-        &self,
-        pose: &SE2,
-        cones: &[Detection],
-        landmarks: impl Iterator<Item = (Vector2<f64>, &'a Sighting)>,
-    ) -> Option<SE2> {
-        let distance = self.motion.distance();
-        let reach = self.config.max_range + 5.0;
-        let old: Vec<(Vector2<f64>, Color)> = landmarks
-            .filter(|(mean, sighting)| {
-                sighting.confirmed
-                    && sighting.view == View::Left
-                    && sighting.is_start_area(distance, pose.theta)
-                    && (mean - pose.t).norm() < reach
-            })
-            .map(|(mean, sighting)| (mean, sighting.color()))
-            .collect();
-        align::recognise(
-            &old,
-            cones,
-            cones,
-            pose,
-            self.config.loop_min_returned.max(cones.len() / 2),
-            // As in the graph: beyond half a cone spacing a fit one spacing
-            // along a regular row can score best, so a larger correction
-            // needs the start line's big orange cones to confirm it.
-            align::Reach {
-                unambiguous: align::unambiguous_shift(&old),
-                max_shift: align::BASE_SHIFT,
-            },
-        )
-        .and_then(|r| r.anchored())
-    }
-
-    /// Whether a lap ends at `pose` with `returned` landmarks back in view.
-    fn lap_closed(&mut self, pose: &SE2, returned: usize) -> bool {
-        let first = *self.first_pose.get_or_insert(*pose);
-        self.mode == Mode::Mapping
-            && returned >= self.config.loop_min_returned
-            && near_start(&first, pose)
     }
 
     fn set_known(&mut self, truth: &[Association]) {
@@ -378,6 +335,7 @@ impl Run {
     /// Counts a loop closure and switches to localisation if configured.
     fn close_loop(&mut self) {
         self.loop_closures += 1;
+        self.place_votes.clear();
         if self.config.localise_after_loop {
             self.mode = Mode::Localising;
         }

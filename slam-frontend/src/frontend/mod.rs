@@ -20,7 +20,7 @@ mod latency;
 mod loop_closure;
 mod noise;
 mod optimise;
-mod place_votes;
+pub(crate) mod place_votes;
 mod pose;
 mod relocalise;
 mod remap;

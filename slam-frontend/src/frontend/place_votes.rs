@@ -30,13 +30,13 @@ const SAME_CORRECTION: (f64, f64) = (1.0, 0.1);
 /// found, and whether any of them found it beyond half a spacing
 /// unconfirmed.
 #[derive(Clone, Debug, Default)]
-pub(super) struct PlaceVotes {
+pub(crate) struct PlaceVotes {
     votes: Vec<(Vec<SE2>, bool)>,
 }
 
 impl PlaceVotes {
     /// Forgets every vote (the car has left the place).
-    pub(super) fn clear(&mut self) {
+    pub(crate) fn clear(&mut self) {
         self.votes.clear();
     }
 
@@ -49,7 +49,7 @@ impl PlaceVotes {
     /// start line, seed 102: an anchored fit 3.5 m off, after one beyond
     /// half a spacing that was right). Anchored fits that disagree are only
     /// noisy: the correction more scans agree on is taken.
-    pub(super) fn confirm(&mut self, pose: &SE2, found: Recognised) -> Option<SE2> {
+    pub(crate) fn confirm(&mut self, pose: &SE2, found: Recognised) -> Option<SE2> {
         let place = found.pose();
         let correction = place.compose(&pose.inverse());
         // Compared where they put the car: a correction's translation alone
