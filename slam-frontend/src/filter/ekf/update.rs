@@ -11,7 +11,7 @@ use nalgebra::{Matrix2, Matrix3, SMatrix, Vector2};
 impl EkfSlam {
     /// Back in the start area with a drift the gates do not cover: where
     /// place recognition puts the car
-    /// ([`Run::recognise`](crate::filter::Run::recognise)) is fused as a
+    /// ([`Run::recognise_once`](crate::filter::Run::recognise_once)) is fused as a
     /// measurement of the pose, so the pose and, through their
     /// correlations, the landmarks move towards it, and the scan's
     /// detections can then match the start's landmarks and close the loop.
@@ -21,7 +21,7 @@ impl EkfSlam {
             let slot = lm.slot?;
             Some((self.x.fixed_rows::<2>(slot).into_owned(), &lm.sighting))
         });
-        let Some(place) = self.run.recognise(&pose, cones, live) else {
+        let Some(place) = self.run.recognise_once(&pose, cones, live) else {
             return;
         };
         let mut nu = place.to_vector() - pose.to_vector();
