@@ -5,13 +5,37 @@ mod common;
 
 use cairn_fs_tools::configs::assumed_config;
 use cairn_fs_tools::course::Course;
+use cairn_fs_tools::eval::Report;
 use cairn_fs_tools::run::score as score_sim;
-use cairn_fs_tools::sim::{SimConfig, simulate};
+use cairn_fs_tools::sim::{SimConfig, Simulation, simulate};
 use cairn_fs_tools::track::Track;
 use cairn_fs_tools::trackgen::{TrackRules, random_track};
 use cairn_slam::estimator::{Estimator, EstimatorKind};
 use cairn_slam::filter::fastslam::{FastSlam, ParticleConfig, Version};
 use cairn_slam::frontend::association::AssociationMethod;
+
+/// FastSLAM 2.0 with 30 particles, told `configs/standard.toml` (ML), on
+/// `sim`, smoothing or not; the run's report.
+fn fastslam2(sim: &Simulation, smooth: bool) -> (FastSlam, Report) {
+    let config = assumed_config(
+        "standard",
+        AssociationMethod::MaximumLikelihood,
+        EstimatorKind::FastSlam2,
+    )
+    .unwrap();
+    let settings = ParticleConfig {
+        particles: 30,
+        smooth,
+        ..ParticleConfig::new(Version::Two)
+    };
+    let mut slam = FastSlam::new(config, settings);
+    for r in &sim.log {
+        slam.process(r);
+    }
+    Estimator::finish(&mut slam).unwrap();
+    let report = score_sim(sim, &slam);
+    (slam, report)
+}
 
 #[test]
 fn fastslam_smooths_the_lap_it_closes() {
@@ -22,25 +46,9 @@ fn fastslam_smooths_the_lap_it_closes() {
     // poses) at the closure and at the end must remove it.
     let (track, course) = random_track(3, &TrackRules::default());
     let sim = simulate(&track, &course, &SimConfig::default());
-    let config = assumed_config(
-        "standard",
-        AssociationMethod::MaximumLikelihood,
-        EstimatorKind::FastSlam2,
-    )
-    .unwrap();
     let reports = [false, true].map(|smooth| {
-        let settings = ParticleConfig {
-            particles: 30,
-            smooth,
-            ..ParticleConfig::new(Version::Two)
-        };
-        let mut slam = FastSlam::new(config.clone(), settings);
-        for r in &sim.log {
-            slam.process(r);
-        }
-        Estimator::finish(&mut slam).unwrap();
+        let (slam, report) = fastslam2(&sim, smooth);
         assert_eq!(slam.loop_closures(), 1, "smoothing {smooth}");
-        let report = score_sim(&sim, &slam);
         println!("smoothing {smooth}: {report:?}");
         report
     });
@@ -71,23 +79,8 @@ fn fastslam_closes_its_lap_where_the_start_area_is_not_one_cone_off() {
     let track = Track::load(&path).expect("the shared track reads");
     let course = Course::from_track(&track).expect("a closed course");
     let sim = simulate(&track, &course, &SimConfig::default());
-    let config = assumed_config(
-        "standard",
-        AssociationMethod::MaximumLikelihood,
-        EstimatorKind::FastSlam2,
-    )
-    .unwrap();
-    let settings = ParticleConfig {
-        particles: 30,
-        ..ParticleConfig::new(Version::Two)
-    };
-    let mut slam = FastSlam::new(config, settings);
-    for r in &sim.log {
-        slam.process(r);
-    }
-    Estimator::finish(&mut slam).unwrap();
+    let (slam, report) = fastslam2(&sim, true);
     assert_eq!(slam.loop_closures(), 1);
-    let report = score_sim(&sim, &slam);
     println!("{report:?}");
     assert!(report.association_accuracy > 0.98, "{report:?}");
     assert_eq!(report.phantom, 0, "{report:?}");
