@@ -131,10 +131,7 @@ impl Run {
             .config
             .loop_min_returned
             .max(cones.len().min(old.len()) / 2);
-        let reach = align::Reach {
-            unambiguous: align::unambiguous_shift(&old),
-            max_shift: align::max_shift(self.motion.distance()),
-        };
+        let reach = align::Reach::lap_end(&old, self.motion.distance());
         let found = align::recognise(&old, cones, cones, pose, needed, reach)?;
         if start_line && found.anchored().is_none() {
             return None;

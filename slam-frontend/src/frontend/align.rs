@@ -207,6 +207,18 @@ pub struct Reach {
     pub max_shift: f64,
 }
 
+impl Reach {
+    /// At the end of a lap of `distance` metres, back among the `map`
+    /// landmarks of its start: unambiguous within half their spacing, and
+    /// as far as that lap's drift may reach ([`max_shift`]).
+    pub fn lap_end(map: &[(Vector2<f64>, Color)], distance: f64) -> Self {
+        Reach {
+            unambiguous: unambiguous_shift(map),
+            max_shift: max_shift(distance),
+        }
+    }
+}
+
 /// Median distance from each boundary cone to the nearest one of a
 /// compatible colour (m); 5 m, the rules' largest spacing, when there are
 /// too few. The start line's orange cones stand closer and would make the

@@ -131,10 +131,7 @@ impl GraphSlam {
             .max(unexplained.len().min(old.len()) / 2);
         // A correction of half a cone spacing or more could as well be one
         // spacing off; the start line's orange cones must confirm it.
-        let reach = align::Reach {
-            unambiguous: align::unambiguous_shift(&map),
-            max_shift: align::max_shift(self.motion.distance()),
-        };
+        let reach = align::Reach::lap_end(&map, self.motion.distance());
         // Where drift put the car's estimate more than a gate away, the
         // lap's end has mapped the start area again: its landmarks, each
         // placed by many sightings, are aligned when the scan alone is not.
