@@ -4,11 +4,9 @@
 mod common;
 
 use cairn_fs_tools::configs::assumed_config;
-use cairn_fs_tools::course::Course;
 use cairn_fs_tools::eval::Report;
 use cairn_fs_tools::run::score as score_sim;
 use cairn_fs_tools::sim::{SimConfig, Simulation, simulate};
-use cairn_fs_tools::track::Track;
 use cairn_fs_tools::trackgen::{TrackRules, random_track};
 use cairn_slam::estimator::{Estimator, EstimatorKind};
 use cairn_slam::filter::fastslam::{FastSlam, ParticleConfig, Version};
@@ -73,11 +71,9 @@ fn fastslam_closes_its_lap_where_the_start_area_is_not_one_cone_off() {
     // 50.9% association, ATE 12 m. Left out of the gates until place
     // recognition finds the start area (scan after scan), it closes right.
     // This is the log the change was made on: a regression guard.
-    let Some(path) = common::shared::shared_path("tracks/epfl_fsds_competition_1_cones.csv") else {
+    let Some((track, course)) = common::shared_track("epfl_fsds_competition_1_cones.csv") else {
         return;
     };
-    let track = Track::load(&path).expect("the shared track reads");
-    let course = Course::from_track(&track).expect("a closed course");
     let sim = simulate(&track, &course, &SimConfig::default());
     let (slam, report) = fastslam2(&sim, true);
     assert_eq!(slam.loop_closures(), 1);

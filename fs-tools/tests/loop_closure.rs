@@ -82,11 +82,9 @@ fn a_detection_is_one_sighting_after_place_recognition() {
 /// seed 100, maximum likelihood 85.9%, tracking 34.7%).
 #[test]
 fn a_straight_beside_the_start_does_not_end_the_lap() {
-    let Some(path) = common::shared::shared_path("tracks/eufs_comp_2021.csv") else {
+    let Some((track, course)) = common::shared_track("eufs_comp_2021.csv") else {
         return;
     };
-    let track = Track::load(&path).expect("the shared track reads");
-    let course = Course::from_track(&track).expect("a closed course");
     let sim = simulate_preset(&track, &course, Preset::realistic(), 100);
     let mut slam = GraphSlam::new(common::standard_graph_config());
     let start = sim.truth[0].pose;
@@ -121,11 +119,9 @@ fn a_straight_beside_the_start_does_not_end_the_lap() {
 /// close only where the scans agree.
 #[test]
 fn one_scan_alone_does_not_close_the_loop() {
-    let Some(path) = common::shared::shared_path("tracks/epfl_fsds_competition_1_cones.csv") else {
+    let Some((track, course)) = common::shared_track("epfl_fsds_competition_1_cones.csv") else {
         return;
     };
-    let track = Track::load(&path).expect("the shared track reads");
-    let course = Course::from_track(&track).expect("a closed course");
     let mut preset = Preset::standard();
     preset.sensor.scale_noise(2.0);
     let sim = simulate_preset(&track, &course, preset, 104);

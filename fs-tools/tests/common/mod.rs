@@ -24,6 +24,15 @@ pub fn simulate_seed(track: &Track, course: &Course, seed: u64) -> Simulation {
     )
 }
 
+/// The shared track file `file` (under `../shared/tracks`) and its course;
+/// `None` (the test skips) without `../shared`.
+pub fn shared_track(file: &str) -> Option<(Track, Course)> {
+    let path = shared::shared_path(&format!("tracks/{file}"))?;
+    let track = Track::load(&path).expect("the shared track reads");
+    let course = Course::from_track(&track).expect("a closed course");
+    Some((track, course))
+}
+
 /// What the graph front end is told of a `standard` log: the shipped
 /// `configs/standard.toml`, maximum-likelihood association.
 pub fn standard_graph_config() -> FrontEndConfig {
