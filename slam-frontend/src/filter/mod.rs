@@ -360,7 +360,8 @@ fn s_landmark(pred: &RangeBearing, lm: &Landmark) -> Matrix2<f64> {
 /// Candidates against landmarks given as (index, mean, covariance,
 /// bookkeeping), for detections as (range, bearing) with covariances, seen
 /// from `pose` with covariance `pose_cov`. Also returns each detection's
-/// nearest χ² even beyond the gate. `cross` is the landmark's covariance
+/// nearest χ² even beyond the gate (the colour penalty included; the gate
+/// itself is on the position alone). `cross` is the landmark's covariance
 /// with the pose (P_rm, zero for FastSLAM), so the innovation covariance is
 /// the joint one: Hₚ P_rr Hₚᵀ + Hₘ P_mm Hₘᵀ + Hₚ P_rm Hₘᵀ + (…)ᵀ + R.
 fn candidates<'a>(
@@ -407,7 +408,11 @@ fn candidates<'a>(
                 .collect();
             pairs.sort_by(|a, b| a.d2.total_cmp(&b.d2));
             let nearest = pairs.first().map_or(f64::INFINITY, |p| p.d2);
-            pairs.retain(|p| p.d2 <= config.gate);
+            // The gate is the position's: a contradicting colour ranks a
+            // pair lower but does not drop it (a cone read in the wrong
+            // colour had gone unmatched whenever its χ² exceeded the gate
+            // less the penalty, about a fifth of the time).
+            pairs.retain(|p| p.d2 - p.penalty <= config.gate);
             (pairs, nearest)
         })
         .unzip()
@@ -506,6 +511,57 @@ mod tests {
             prop_assert!((j_pose - by_pose).abs().max() < 1e-5);
             prop_assert!((j_z - by_z).abs().max() < 1e-5);
         }
+    }
+
+    #[test]
+    fn a_contradicting_colour_ranks_a_pair_lower_but_is_no_gate() {
+        let config = FrontEndConfig::default();
+        let mut sighting = Sighting::new(Color::Yellow, 0, 0.0, 0.0);
+        for _ in 0..4 {
+            sighting.count(Color::Yellow, 3);
+        }
+        let landmark = || {
+            let lm = Landmark {
+                mean: Vector2::new(10.0, 0.0),
+                cov: Matrix2::zeros(),
+                cross: SMatrix::zeros(),
+                sighting: &sighting,
+            };
+            std::iter::once((0, lm))
+        };
+        // Blue detections of the yellow landmark, their range off by √χ²
+        // times its σ there (σ = a + b·r): within the gate by position,
+        // and beyond it.
+        let (a, b) = (config.range_sigma, config.range_sigma_relative);
+        let detection = |chi2: f64| {
+            let k = chi2.sqrt();
+            let r = (10.0 + a * k) / (1.0 - b * k);
+            let d = Detection {
+                position: Vector2::new(r, 0.0),
+                range_bearing: Some((r, 0.0)),
+                color: Color::Blue,
+                id: None,
+                covariance: None,
+            };
+            (measurement(&config, &d), d)
+        };
+        let gate = config.gate;
+        let (inside, beyond) = (detection(gate - 1.0), detection(gate + 1.0));
+        let (pose, pose_cov) = (SE2::identity(), Matrix3::zeros());
+        let (pairs, nearest) = candidates(
+            &config,
+            &pose,
+            &pose_cov,
+            &[inside.0, beyond.0],
+            &[inside.1, beyond.1],
+            landmark(),
+        );
+        assert!(config.color_penalty > 1.0);
+        let expected = gate - 1.0 + config.color_penalty;
+        assert_eq!(pairs[0].len(), 1, "{pairs:?}");
+        assert!((pairs[0][0].d2 - expected).abs() < 1e-6, "{pairs:?}");
+        assert!((nearest[0] - expected).abs() < 1e-6);
+        assert!(pairs[1].is_empty(), "{pairs:?}");
     }
 
     #[test]
