@@ -136,6 +136,11 @@ impl Pair {
             bhattacharyya: b1 + b2 + if colour_penalty > 0.0 { 1.0 } else { 0.0 },
         })
     }
+
+    /// The innovation's χ² alone, without the colour penalty.
+    pub fn position_d2(&self) -> f64 {
+        self.d2 - self.penalty
+    }
 }
 
 /// Whether an innovation's χ² must exceed `gate` whatever its covariance

@@ -112,7 +112,7 @@ impl Tail {
     fn log_parts(&self, pair: &Pair) -> (f64, f64) {
         let ln_det = pair.cost - pair.d2;
         let k2 = SPREAD * SPREAD;
-        let tail_d2 = (pair.d2 - pair.penalty) / k2 + pair.penalty + 2.0 * k2.ln();
+        let tail_d2 = pair.position_d2() / k2 + pair.penalty + 2.0 * k2.ln();
         (
             (1.0 - self.weight).ln() - 0.5 * (pair.d2 + ln_det),
             self.weight.ln() - 0.5 * (tail_d2 + ln_det),
