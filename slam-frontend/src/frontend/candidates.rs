@@ -107,7 +107,9 @@ impl GraphSlam {
                     .collect();
                 pairs.sort_by(|a, b| a.d2.total_cmp(&b.d2));
                 let nearest = pairs.first().map_or(f64::INFINITY, |p| p.d2);
-                pairs.retain(|p| p.d2 <= gate);
+                // The gate is the position's: a contradicting colour ranks
+                // a pair lower but does not drop it.
+                pairs.retain(|p| p.position_d2() <= gate);
                 (pairs, nearest)
             })
             .collect()
@@ -128,8 +130,55 @@ fn pose_jacobian(rt: &Matrix2<f64>, diff: &Vector2<f64>) -> SMatrix<f64, 2, 3> {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::color::Color;
+    use crate::frontend::FrontEndConfig;
+    use crate::log::Record;
     use cairn_core::SE2;
     use rand::{Rng, SeedableRng, rngs::StdRng};
+
+    #[test]
+    fn a_contradicting_colour_ranks_a_pair_lower_but_is_no_gate() {
+        // A car standing still sees a yellow cone 10 m ahead, then reads it
+        // blue with its range off by √χ² times its σ there: within the gate
+        // by position, beyond it with the colour penalty.
+        let config = FrontEndConfig::default();
+        let (a, b, gate) = (config.range_sigma, config.range_sigma_relative, config.gate);
+        assert!(config.color_penalty > 1.0);
+        let mut slam = GraphSlam::new(config);
+        let cone = |r: f64, color| Detection {
+            position: Vector2::new(r, 0.0),
+            range_bearing: Some((r, 0.0)),
+            color,
+            id: None,
+            covariance: None,
+        };
+        let k = (gate - 1.0).sqrt();
+        let off = (10.0 + a * k) / (1.0 - b * k);
+        for step in 0..=12 {
+            let t = 0.1 * f64::from(step);
+            slam.process(&Record::Odom {
+                t,
+                v: 0.0,
+                yaw_rate: 0.0,
+                steer: None,
+                vy: None,
+            });
+            let cones = if step < 12 {
+                vec![cone(10.0, Color::Yellow)]
+            } else {
+                vec![cone(off, Color::Blue)]
+            };
+            slam.process(&Record::Cones { t, cones });
+        }
+        let matched = slam.associations();
+        let yellow = matched[0].landmark;
+        assert!(yellow.is_some(), "{matched:?}");
+        assert_eq!(
+            matched.last().map(|m| m.landmark),
+            Some(yellow),
+            "{matched:?}"
+        );
+    }
 
     #[test]
     fn the_pose_jacobian_matches_differences_and_its_norm_the_bound() {

@@ -106,9 +106,8 @@ pub struct FrontEndConfig {
     /// between `gate` and this it is ambiguous and rejected.
     pub new_landmark_gate: f64,
     /// Penalty added to χ² when the detection's colour contradicts the
-    /// landmark's. The graph's real-time gate includes it; EKF-SLAM and
-    /// FastSLAM gate on the position's χ² alone, so that a colour ranks a
-    /// pair but never drops it.
+    /// landmark's. Every estimator gates on the position's χ² alone, so
+    /// that a colour ranks a pair but never drops it.
     pub color_penalty: f64,
     /// How often the detector reads a cone as another known colour, and as
     /// unknown: landmarks whose colours fit a cone's far worse are clutter.

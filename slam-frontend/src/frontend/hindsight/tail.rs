@@ -130,10 +130,11 @@ impl Tail {
         -2.0 * (m + ((a - m).exp() + (b - m).exp()).ln())
     }
 
-    /// Whether `pair` may be matched: within the Gaussian's `gate`, or
+    /// Whether `pair` may be matched: within the Gaussian's `gate` by its
+    /// position (a contradicting colour ranks it, never gates it), or
     /// beyond it where the tail explains it better than the Gaussian.
     pub(super) fn admits(&self, pair: &Pair, gate: f64) -> bool {
-        if pair.d2 <= gate {
+        if pair.position_d2() <= gate {
             return true;
         }
         let (a, b) = self.log_parts(pair);
@@ -262,5 +263,15 @@ mod tests {
         };
         assert!(!rare.admits(&pair(25.0), 18.42));
         assert!(rare.admits(&pair(26.0), 18.42));
+        // A contradicting colour ranks a pair lower but is no gate: within
+        // the gate by position, admitted whatever its penalty.
+        let recoloured = Pair {
+            d2: 18.0 + 6.0,
+            cost: 18.0 + 6.0,
+            penalty: 6.0,
+            ..pair(18.0)
+        };
+        assert!(none.admits(&recoloured, 18.42));
+        assert!(none.cost(&recoloured) > none.cost(&pair(18.0)));
     }
 }
