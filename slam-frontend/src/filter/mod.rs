@@ -412,7 +412,7 @@ fn candidates<'a>(
             // pair lower but does not drop it (a cone read in the wrong
             // colour had gone unmatched whenever its χ² exceeded the gate
             // less the penalty, about a fifth of the time).
-            pairs.retain(|p| p.position_d2() <= config.gate);
+            pairs.retain(|p| p.within(config.gate));
             (pairs, nearest)
         })
         .unzip()

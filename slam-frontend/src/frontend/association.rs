@@ -141,6 +141,12 @@ impl Pair {
     pub fn position_d2(&self) -> f64 {
         self.d2 - self.penalty
     }
+
+    /// Whether the pair passes the χ² `gate`: on its position alone, so
+    /// that a contradicting colour ranks a pair lower but never drops it.
+    pub fn within(&self, gate: f64) -> bool {
+        self.position_d2() <= gate
+    }
 }
 
 /// Whether an innovation's χ² must exceed `gate` whatever its covariance

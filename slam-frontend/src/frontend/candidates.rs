@@ -107,9 +107,7 @@ impl GraphSlam {
                     .collect();
                 pairs.sort_by(|a, b| a.d2.total_cmp(&b.d2));
                 let nearest = pairs.first().map_or(f64::INFINITY, |p| p.d2);
-                // The gate is the position's: a contradicting colour ranks
-                // a pair lower but does not drop it.
-                pairs.retain(|p| p.position_d2() <= gate);
+                pairs.retain(|p| p.within(gate));
                 (pairs, nearest)
             })
             .collect()

@@ -134,7 +134,7 @@ impl Tail {
     /// position (a contradicting colour ranks it, never gates it), or
     /// beyond it where the tail explains it better than the Gaussian.
     pub(super) fn admits(&self, pair: &Pair, gate: f64) -> bool {
-        if pair.position_d2() <= gate {
+        if pair.within(gate) {
             return true;
         }
         let (a, b) = self.log_parts(pair);
